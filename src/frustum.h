@@ -1,0 +1,97 @@
+// Frustum casting (Teller & Alex 1998, §3–§5): frusta advance through the k-d tree from the
+// eye outward, split where their corner rays disagree about the next cell or where elements
+// impinge, and resolve single pixels by ray walking only at 2×2 resolution.
+//
+// What it keeps from the paper:
+// - frustum descriptors whose planes are shared: every pixel column and row of the view is one
+//   plane through the eye, computed once per frame, so children reuse the parent's planes and
+//   corner rays for free (§3.1);
+// - ternary classification of element bounds with straddle inheritance (§4): an element that
+//   straddles both planes of an axis is never tested against that axis again in descendants;
+// - four corner rays hitting the same nearest element fill the frustum (§4) — here checked per
+//   pixel against that element and the few elements that could be nearer, so it stays exact;
+// - near plane; eye outside the root (§4 special case);
+// - the job queue of §5.2: levels of a breadth-first subdivision, each level interleaved across
+//   the screen, interruptible between jobs by a time or sample budget, resumable next frame.
+//
+// Exactness argument (why frusta may advance): a frustum moves from cell A to cell B only when
+// all four corner rays leave A through the same face into B; the frustum's cross-section with
+// that face is the convex hull of the corner points, so every interior ray makes the same move,
+// and no element of A impinged on the frustum. Elements are tested with conservative bounds.
+#pragma once
+
+#include "src/counters.h"
+#include "src/kdtree.h"
+#include "src/sample_buffer.h"
+#include "src/scene.h"
+#include "src/shading.h"
+#include "src/view.h"
+
+#include <atomic>
+#include <chrono>
+#include <memory>
+#include <vector>
+
+namespace frontier {
+
+// When to stop working on a frame (paper §5.5: peg either frame time or sample count).
+struct FrameBudget {
+  double ms = 0.0;       // 0: no time limit
+  uint64_t samples = 0;  // 0: no sample limit
+};
+
+class FrustumCaster {
+ public:
+  // `threads` worker threads (0: all cores).
+  FrustumCaster(const Scene& scene, const KdTree& tree, const Shader& shader, int threads);
+  ~FrustumCaster();
+
+  // Starts a new frame for `view`; the buffer's frame stamp advances (nothing is cleared).
+  // `shade` false resolves visibility only (no lighting work); `shadows` enables the deferred
+  // shadow effect when the scene declares lights.
+  void begin(const View& view, SampleBuffer& buffer, CellMarks& marks, bool shade, bool shadows);
+  // Runs queued jobs until the frame is complete or the budget is spent; counters accumulate.
+  // Returns true when every pixel is resolved. May be called again to continue the frame.
+  bool run(const FrameBudget& budget, Counters& counters);
+  bool complete() const;
+
+ private:
+  struct Job;
+  struct Incidence;
+  struct Worker;
+  enum class Side : uint8_t { Inside, Straddle, Outside };
+
+  void process(Job job, Worker& w);
+  Side classify(const Vec3& normal, const Aabb& box) const;
+  bool in_front(const Aabb& box) const;
+  bool collect(const Job& job, Worker& w);
+  void resolve_by_walking(const Job& job, Worker& w);
+  void fill_background(const Job& job, Worker& w);
+  bool try_fill(const Job& job, const Incidence* list, uint32_t n, uint32_t element, Worker& w);
+  void split(const Job& job, const Incidence* list, uint32_t n, Worker& w);
+  void confirm(int x, int y, uint32_t prim, double t, const Ray& ray, Worker& w);
+  void finish_level();
+
+  const Scene& scene_;
+  const KdTree& tree_;
+  const Shader& shader_;
+  View view_;
+  SampleBuffer* buffer_ = nullptr;
+  CellMarks* marks_ = nullptr;
+  bool shade_ = true;
+  bool shadows_ = true;
+  double slack_scale_ = 1.0;
+
+  std::vector<Vec3> column_normal_;  // plane of pixel column x, oriented towards larger x
+  std::vector<Vec3> row_normal_;     // plane of pixel row y, oriented towards larger y
+
+  std::vector<Job> current_;                      // jobs of the current level not yet run
+  std::vector<std::vector<Incidence>> arenas_in_;  // incidence lists the current level reads
+  std::vector<std::unique_ptr<Worker>> workers_;
+  std::atomic<uint64_t> samples_done_{0};
+  int threads_ = 1;
+  struct Arena;
+  std::unique_ptr<Arena> arena_;
+};
+
+}  // namespace frontier

@@ -1,0 +1,306 @@
+// k-d tree build (binned SAH over clipped primitive bounds), ropes, point location and the
+// cell-to-cell step of ray walking.
+#include "src/kdtree.h"
+
+#include <algorithm>
+#include <array>
+#include <cassert>
+#include <cmath>
+
+namespace frontier {
+
+namespace {
+
+struct Item {
+  uint32_t prim;
+  Aabb box;  // clipped to the current node
+};
+
+// Pads bounds by a relative epsilon so that geometry touching a split plane is referenced on
+// both sides (the cure for hits computed a few ulps across a cell boundary).
+Aabb padded(const Aabb& b, double scale) {
+  const double eps = 1e-9 * scale + 1e-12 * std::max(1.0, b.magnitude());
+  Aabb r = b;
+  r.lo -= Vec3(eps);
+  r.hi += Vec3(eps);
+  return r;
+}
+
+}  // namespace
+
+class KdBuilder {
+ public:
+  KdBuilder(KdTree& tree, const KdBuildOptions& options) : tree_(tree), options_(options) {}
+
+  void build(const Scene& scene) {
+    std::vector<Item> items;
+    items.reserve(scene.size());
+    Aabb root;
+    for (uint32_t i = 0; i < scene.size(); ++i) {
+      const Aabb b = scene.prim_bounds(i);
+      if (b.empty()) continue;
+      items.push_back({i, b});
+      root.extend(b);
+    }
+    if (items.empty()) {
+      root = Aabb(Vec3(-1.0), Vec3(1.0));
+    }
+    const double scale = std::max(glm::length(root.extent()), 1e-300);
+    for (Item& it : items) it.box = padded(it.box, scale);
+    // The root is padded a little more than the primitives so that no primitive touches it.
+    root = padded(root, 2.0 * scale);
+    // Give flat roots some thickness: cells are never flat.
+    for (int a = 0; a < 3; ++a) {
+      if (root.hi[a] - root.lo[a] <= 1e-9 * scale) {
+        root.lo[a] -= 1e-6 * scale;
+        root.hi[a] += 1e-6 * scale;
+      }
+    }
+    for (Item& it : items) it.box = it.box.intersection(root);
+    tree_.bounds_ = root;
+    max_depth_ = options_.max_depth != 0
+                     ? options_.max_depth
+                     : static_cast<uint32_t>(8 + 1.3 * std::log2(std::max<size_t>(items.size(), 1)));
+    recurse(std::move(items), root, 0);
+    std::array<int32_t, 6> ropes;
+    ropes.fill(KdTree::kNone);
+    assign_ropes(0, root, ropes);
+  }
+
+ private:
+  struct Split {
+    int axis = -1;
+    double pos = 0.0;
+    double cost = kInfinity;
+    size_t left = 0, right = 0;
+  };
+
+  Split best_split(const std::vector<Item>& items, const Aabb& box) const {
+    Split best;
+    const int bins = std::max(options_.bins, 2);
+    const double area = box.surface_area();
+    std::vector<uint32_t> starts(bins), ends(bins);
+    for (int axis = 0; axis < 3; ++axis) {
+      const double lo = box.lo[axis], hi = box.hi[axis];
+      const double width = (hi - lo) / bins;
+      if (!(width > 0.0)) continue;
+      std::fill(starts.begin(), starts.end(), 0);
+      std::fill(ends.begin(), ends.end(), 0);
+      for (const Item& it : items) {
+        const int s = std::clamp(static_cast<int>((it.box.lo[axis] - lo) / width), 0, bins - 1);
+        const int e = std::clamp(static_cast<int>((it.box.hi[axis] - lo) / width), 0, bins - 1);
+        ++starts[s];
+        ++ends[e];
+      }
+      size_t left = 0, right = items.size();
+      for (int k = 1; k < bins; ++k) {
+        left += starts[k - 1];
+        right -= ends[k - 1];
+        const double pos = lo + k * width;
+        if (!(pos > lo && pos < hi)) continue;
+        Aabb lbox = box, rbox = box;
+        lbox.hi[axis] = pos;
+        rbox.lo[axis] = pos;
+        double cost = options_.traversal_cost +
+                      options_.intersection_cost *
+                          (lbox.surface_area() / area * static_cast<double>(left) +
+                           rbox.surface_area() / area * static_cast<double>(right));
+        if (left == 0 || right == 0) cost *= 1.0 - options_.empty_bonus;
+        if (cost < best.cost) best = {axis, pos, cost, left, right};
+      }
+    }
+    return best;
+  }
+
+  // Appends the subtree for `items` inside `box`; returns its node index.
+  uint32_t recurse(std::vector<Item> items, const Aabb& box, uint32_t depth) {
+    const uint32_t index = static_cast<uint32_t>(tree_.nodes_.size());
+    tree_.nodes_.push_back({});
+    tree_.depth_ = std::max(tree_.depth_, depth);
+    const double leaf_cost = options_.intersection_cost * static_cast<double>(items.size());
+    Split split;
+    if (!items.empty() && depth < max_depth_) split = best_split(items, box);
+    bool do_split = split.axis >= 0 && split.cost < leaf_cost;
+    if (!do_split && split.axis >= 0 && items.size() > options_.max_cell_prims &&
+        split.left < items.size() && split.right < items.size()) {
+      do_split = true;  // the cell-size cap overrides SAH while splitting still separates
+    }
+    if (!do_split) {
+      make_leaf(index, items, box);
+      return index;
+    }
+    const int axis = split.axis;
+    const double pos = split.pos;
+    Aabb lbox = box, rbox = box;
+    lbox.hi[axis] = pos;
+    rbox.lo[axis] = pos;
+    std::vector<Item> left, right;
+    left.reserve(split.left);
+    right.reserve(split.right);
+    for (const Item& it : items) {
+      const bool planar_on_split = it.box.lo[axis] == pos && it.box.hi[axis] == pos;
+      if (it.box.lo[axis] < pos || planar_on_split) left.push_back({it.prim, it.box.intersection(lbox)});
+      if (it.box.hi[axis] > pos || planar_on_split) right.push_back({it.prim, it.box.intersection(rbox)});
+    }
+    // Guard against a split that separates nothing (all items straddle): make a leaf instead
+    // of recursing forever.
+    if (left.size() == items.size() && right.size() == items.size() && items.size() > 1 &&
+        split.cost >= leaf_cost) {
+      make_leaf(index, items, box);
+      return index;
+    }
+    items.clear();
+    items.shrink_to_fit();
+    recurse(std::move(left), lbox, depth + 1);
+    const uint32_t upper = recurse(std::move(right), rbox, depth + 1);
+    KdTree::Node& node = tree_.nodes_[index];
+    node.split = pos;
+    node.axis_or_leaf = static_cast<uint32_t>(axis);
+    node.child = upper;
+    return index;
+  }
+
+  void make_leaf(uint32_t index, const std::vector<Item>& items, const Aabb& box) {
+    KdTree::Cell cell;
+    cell.bounds = box;
+    cell.first = static_cast<uint32_t>(tree_.refs_.size());
+    cell.count = static_cast<uint32_t>(items.size());
+    for (const Item& it : items) {
+      tree_.refs_.push_back(it.prim);
+      tree_.ref_bounds_.push_back(it.box);
+      cell.content.extend(it.box);
+    }
+    tree_.nodes_[index].axis_or_leaf = 3;
+    tree_.nodes_[index].child = static_cast<uint32_t>(tree_.cells_.size());
+    tree_.cells_.push_back(cell);
+  }
+
+  // Moves a rope down the neighbour subtree while one child covers the whole face.
+  int32_t tighten(int32_t rope, int face, const Aabb& box) const {
+    const int face_axis = face / 2;
+    const bool upper = (face & 1) != 0;
+    while (rope != KdTree::kNone) {
+      const KdTree::Node& n = tree_.nodes_[static_cast<size_t>(rope)];
+      if (n.is_leaf()) break;
+      const int a = static_cast<int>(n.axis_or_leaf);
+      const int32_t lower_child = rope + 1, upper_child = static_cast<int32_t>(n.child);
+      if (a == face_axis) {
+        rope = upper ? lower_child : upper_child;  // the child adjacent to the face
+      } else if (n.split >= box.hi[a]) {
+        rope = lower_child;
+      } else if (n.split <= box.lo[a]) {
+        rope = upper_child;
+      } else {
+        break;
+      }
+    }
+    return rope;
+  }
+
+  void assign_ropes(uint32_t index, const Aabb& box, std::array<int32_t, 6> ropes) {
+    for (int f = 0; f < 6; ++f) ropes[f] = tighten(ropes[f], f, box);
+    const KdTree::Node node = tree_.nodes_[index];
+    if (node.is_leaf()) {
+      KdTree::Cell& cell = tree_.cells_[node.child];
+      for (int f = 0; f < 6; ++f) cell.rope[f] = ropes[f];
+      return;
+    }
+    const int a = static_cast<int>(node.axis_or_leaf);
+    Aabb lbox = box, rbox = box;
+    lbox.hi[a] = node.split;
+    rbox.lo[a] = node.split;
+    std::array<int32_t, 6> lropes = ropes, rropes = ropes;
+    lropes[2 * a + 1] = static_cast<int32_t>(node.child);
+    rropes[2 * a] = static_cast<int32_t>(index + 1);
+    assign_ropes(index + 1, lbox, lropes);
+    assign_ropes(node.child, rbox, rropes);
+  }
+
+  KdTree& tree_;
+  KdBuildOptions options_;
+  uint32_t max_depth_ = 0;
+};
+
+KdTree KdTree::build(const Scene& scene, const KdBuildOptions& options) {
+  KdTree tree;
+  KdBuilder builder(tree, options);
+  builder.build(scene);
+  return tree;
+}
+
+int32_t KdTree::descend(int32_t n, const Vec3& p, const Vec3& dir) const {
+  while (true) {
+    const Node& node = nodes_[static_cast<size_t>(n)];
+    if (node.is_leaf()) return static_cast<int32_t>(node.child);
+    const int a = static_cast<int>(node.axis_or_leaf);
+    bool upper;
+    if (p[a] < node.split) {
+      upper = false;
+    } else if (p[a] > node.split) {
+      upper = true;
+    } else {
+      upper = dir[a] >= 0.0;
+    }
+    n = upper ? static_cast<int32_t>(node.child) : n + 1;
+  }
+}
+
+int32_t KdTree::locate(const Vec3& p, const Vec3& dir) const {
+  if (!bounds_.contains(p)) return kNone;
+  return descend(0, p, dir);
+}
+
+KdTree::Exit KdTree::exit(int32_t c, const Ray& ray) const {
+  const Aabb& b = cells_[static_cast<size_t>(c)].bounds;
+  Exit e;
+  for (int a = 0; a < 3; ++a) {
+    double t;
+    int face;
+    if (ray.dir[a] > 0.0) {
+      t = (b.hi[a] - ray.origin[a]) * ray.inv_dir[a];
+      face = 2 * a + 1;
+    } else if (ray.dir[a] < 0.0) {
+      t = (b.lo[a] - ray.origin[a]) * ray.inv_dir[a];
+      face = 2 * a;
+    } else {
+      continue;
+    }
+    if (t < e.t) {
+      e.t = t;
+      e.face = face;
+    }
+  }
+  return e;
+}
+
+int32_t KdTree::arrival(int32_t c, const Ray& ray, const Exit& e) const {
+  if (e.face < 0) return kNone;
+  const Cell& cell = cells_[static_cast<size_t>(c)];
+  const int32_t rope = cell.rope[e.face];
+  if (rope == kNone) return kNone;
+  const int a = e.face / 2;
+  Vec3 p = ray.at(e.t);
+  p[a] = (e.face & 1) ? cell.bounds.hi[a] : cell.bounds.lo[a];
+  return descend(rope, p, ray.dir);
+}
+
+int32_t KdTree::enter_root(const Ray& ray, double tmin, double& t_enter, int& face) const {
+  double t0, t1;
+  if (!ray_box_interval(ray, bounds_, t0, t1) || t1 < tmin) return kNone;
+  t_enter = std::max(t0, tmin);
+  // The entry face: the axis whose slab produced t0.
+  face = -1;
+  for (int a = 0; a < 3 && face < 0; ++a) {
+    if (ray.dir[a] == 0.0) continue;
+    const double plane = ray.dir[a] > 0.0 ? bounds_.lo[a] : bounds_.hi[a];
+    if ((plane - ray.origin[a]) * ray.inv_dir[a] == t0) face = 2 * a + (ray.dir[a] > 0.0 ? 0 : 1);
+  }
+  Vec3 p = glm::clamp(ray.at(t_enter), bounds_.lo, bounds_.hi);
+  if (face >= 0 && t_enter == t0) {
+    const int a = face / 2;
+    p[a] = (face & 1) ? bounds_.hi[a] : bounds_.lo[a];
+  }
+  return descend(0, p, ray.dir);
+}
+
+}  // namespace frontier

@@ -1,0 +1,92 @@
+// The in-memory k-d tree: interior nodes (axis, split) and leaf cells. Every cell knows its
+// bounds, the bounds of its content, its primitive references and its ropes — for each of its
+// six faces the deepest node that covers the whole region across that face (or none at the
+// root boundary) — so a ray leaving a cell finds its arrival cell without a root descent.
+//
+// Invariants:
+// - Splits lie strictly inside their node's bounds, so no cell is flat.
+// - A primitive is referenced by every cell its (slightly padded) bounds overlap; each
+//   reference carries the primitive bounds clipped to the cell (what frusta are tested against).
+// - Ties are broken deterministically: a point exactly on a split plane goes to the side the
+//   given direction points to (the upper side when the direction is 0 on that axis).
+#pragma once
+
+#include "src/geometry.h"
+#include "src/scene.h"
+
+#include <cstdint>
+#include <vector>
+
+namespace frontier {
+
+struct KdBuildOptions {
+  uint32_t max_cell_prims = 8;   // cells above this size split even if SAH prefers a leaf
+  uint32_t max_depth = 0;        // 0: 8 + 1.3 log2(n)
+  double traversal_cost = 1.0;
+  double intersection_cost = 1.5;
+  double empty_bonus = 0.2;      // SAH discount for cutting off empty space
+  int bins = 32;
+};
+
+class KdTree {
+ public:
+  static constexpr int32_t kNone = -1;
+
+  struct Node {
+    double split = 0.0;
+    uint32_t axis_or_leaf = 3;  // 0..2 split axis, 3 leaf
+    uint32_t child = 0;         // interior: index of the upper child (lower child is this + 1);
+                                // leaf: cell index
+    bool is_leaf() const { return axis_or_leaf == 3; }
+  };
+
+  struct Cell {
+    Aabb bounds;
+    Aabb content;            // union of the clipped bounds of its references
+    uint32_t first = 0;      // into refs / ref_bounds
+    uint32_t count = 0;
+    int32_t rope[6] = {kNone, kNone, kNone, kNone, kNone, kNone};  // face = 2*axis + (upper?1:0)
+  };
+
+  // Where a ray leaves a cell.
+  struct Exit {
+    double t = kInfinity;
+    int face = -1;          // 2*axis + upper
+  };
+
+  static KdTree build(const Scene& scene, const KdBuildOptions& options = {});
+
+  const Aabb& bounds() const { return bounds_; }
+  const std::vector<Node>& nodes() const { return nodes_; }
+  const std::vector<Cell>& cells() const { return cells_; }
+  const Cell& cell(int32_t c) const { return cells_[static_cast<size_t>(c)]; }
+  // Primitive index of a cell reference, and its bounds clipped to the cell.
+  uint32_t ref(uint32_t r) const { return refs_[r]; }
+  const Aabb& ref_bounds(uint32_t r) const { return ref_bounds_[r]; }
+  uint32_t depth() const { return depth_; }
+  size_t reference_count() const { return refs_.size(); }
+
+  // Cell containing p, ties broken by `dir`; kNone if p is outside the root.
+  int32_t locate(const Vec3& p, const Vec3& dir) const;
+  // Descends from node `n` to the leaf cell containing p (p assumed inside n), ties by dir.
+  int32_t descend(int32_t n, const Vec3& p, const Vec3& dir) const;
+  // Where `ray` leaves cell c (the ray is assumed to be in or on the cell).
+  Exit exit(int32_t c, const Ray& ray) const;
+  // The cell a ray enters after leaving c through `e`; kNone when it leaves the root.
+  int32_t arrival(int32_t c, const Ray& ray, const Exit& e) const;
+  // Where a ray from outside enters the root: the cell and the entry parameter. kNone if it
+  // misses the root.
+  int32_t enter_root(const Ray& ray, double tmin, double& t_enter, int& face) const;
+
+ private:
+  Aabb bounds_;
+  std::vector<Node> nodes_;
+  std::vector<Cell> cells_;
+  std::vector<uint32_t> refs_;
+  std::vector<Aabb> ref_bounds_;
+  uint32_t depth_ = 0;
+
+  friend class KdBuilder;
+};
+
+}  // namespace frontier

@@ -1,0 +1,42 @@
+// One call to render a complete frame with any method, for the command line, tests and
+// benchmarks. Brute force and ray walking resolve every pixel per ray; frustum casting runs
+// its job queue to completion (or to a budget).
+#pragma once
+
+#include "src/counters.h"
+#include "src/frustum.h"
+#include "src/kdtree.h"
+#include "src/sample_buffer.h"
+#include "src/scene.h"
+#include "src/shading.h"
+#include "src/view.h"
+
+#include <string>
+#include <vector>
+
+namespace frontier {
+
+enum class Method { Brute, RayWalk, Frustum };
+
+// Parses "brute", "raywalk", "frustum".
+bool parse_method(const std::string& name, Method& method);
+const char* method_name(Method method);
+
+struct RenderOptions {
+  Method method = Method::Frustum;
+  int threads = 0;          // 0: all cores
+  bool shade = true;        // false: visibility only (ids), no lighting work
+  bool shadows = true;      // deferred shadow effect (only if the scene declares lights)
+  FrameBudget budget;       // frustum casting only
+};
+
+// Renders `view` into `buffer` (which keeps per-pixel first-hit primitive, t and colour) and
+// reconstructs unsampled pixels. Returns the frame's counters.
+Counters render_frame(const Scene& scene, const KdTree& tree, const View& view,
+                      const RenderOptions& options, SampleBuffer& buffer);
+
+// The id image: per pixel the source id of the first-hit primitive, kNoPrim for background or
+// unsampled pixels. Row-major, top row first.
+std::vector<uint32_t> id_image(const Scene& scene, const SampleBuffer& buffer);
+
+}  // namespace frontier

@@ -1,0 +1,107 @@
+// SampleBuffer, CellMarks and the §5.4 reconstruction.
+#include "src/sample_buffer.h"
+
+#include <functional>
+
+namespace frontier {
+
+void SampleBuffer::resize(int width, int height) {
+  if (width == width_ && height == height_ && stamp_) return;
+  width_ = width;
+  height_ = height;
+  const size_t n = static_cast<size_t>(width) * static_cast<size_t>(height);
+  stamp_ = std::make_unique<std::atomic<uint32_t>[]>(n);
+  for (size_t i = 0; i < n; ++i) stamp_[i].store(0, std::memory_order_relaxed);
+  prim_.assign(n, kNoPrim);
+  t_.assign(n, kInfinity);
+  color_.assign(n, Rgb{});
+  image_.assign(n, Rgb{});
+  frame_ = 1;
+}
+
+size_t SampleBuffer::confirmed_count() const {
+  size_t n = 0;
+  for (size_t i = 0; i < prim_.size(); ++i) n += confirmed(i) ? 1 : 0;
+  return n;
+}
+
+void CellMarks::resize(size_t cells) {
+  if (cells == size_ && stamp_) return;
+  size_ = cells;
+  stamp_ = std::make_unique<std::atomic<uint32_t>[]>(cells);
+  for (size_t i = 0; i < cells; ++i) stamp_[i].store(0, std::memory_order_relaxed);
+  frame_ = 1;
+}
+
+namespace {
+
+Rgb mix(Rgb a, Rgb b) { return {0.5f * (a.r + b.r), 0.5f * (a.g + b.g), 0.5f * (a.b + b.b)}; }
+Rgb mix4(Rgb a, Rgb b, Rgb c, Rgb d) {
+  return {0.25f * (a.r + b.r + c.r + d.r), 0.25f * (a.g + b.g + c.g + d.g),
+          0.25f * (a.b + b.b + c.b + d.b)};
+}
+
+}  // namespace
+
+void reconstruct(SampleBuffer& buf, Rgb fallback) {
+  const int w = buf.width(), h = buf.height();
+  if (w == 0 || h == 0) return;
+  std::vector<Rgb>& img = buf.image();
+  std::vector<uint8_t> known(img.size(), 0);
+  // Root corners: confirmed values, else the mean of all confirmed samples.
+  Rgb mean = fallback;
+  {
+    double r = 0, g = 0, b = 0;
+    size_t n = 0;
+    for (size_t i = 0; i < img.size(); ++i) {
+      if (!buf.confirmed(i)) continue;
+      const Rgb c = buf.color(i);
+      r += c.r;
+      g += c.g;
+      b += c.b;
+      ++n;
+    }
+    if (n > 0) mean = {float(r / n), float(g / n), float(b / n)};
+  }
+  auto value = [&](int x, int y) -> Rgb& { return img[static_cast<size_t>(y) * w + x]; };
+  auto settle = [&](int x, int y, Rgb interpolated) {
+    const size_t i = static_cast<size_t>(y) * w + x;
+    if (known[i]) return;
+    img[i] = buf.confirmed(i) ? buf.color(i) : interpolated;
+    known[i] = 1;
+  };
+  settle(0, 0, mean);
+  settle(w - 1, 0, mean);
+  settle(0, h - 1, mean);
+  settle(w - 1, h - 1, mean);
+  std::function<void(int, int, int, int)> fill = [&](int x0, int y0, int x1, int y1) {
+    const bool split_x = x1 - x0 >= 2, split_y = y1 - y0 >= 2;
+    if (!split_x && !split_y) return;
+    const int xm = split_x ? (x0 + x1) / 2 : x0, ym = split_y ? (y0 + y1) / 2 : y0;
+    const Rgb c00 = value(x0, y0), c10 = value(x1, y0), c01 = value(x0, y1), c11 = value(x1, y1);
+    if (split_x) {
+      settle(xm, y0, mix(c00, c10));
+      settle(xm, y1, mix(c01, c11));
+    }
+    if (split_y) {
+      settle(x0, ym, mix(c00, c01));
+      settle(x1, ym, mix(c10, c11));
+    }
+    if (split_x && split_y) settle(xm, ym, mix4(c00, c10, c01, c11));
+    if (split_x && split_y) {
+      fill(x0, y0, xm, ym);
+      fill(xm, y0, x1, ym);
+      fill(x0, ym, xm, y1);
+      fill(xm, ym, x1, y1);
+    } else if (split_x) {
+      fill(x0, y0, xm, y1);
+      fill(xm, y0, x1, y1);
+    } else {
+      fill(x0, y0, x1, ym);
+      fill(x0, ym, x1, y1);
+    }
+  };
+  fill(0, 0, w - 1, h - 1);
+}
+
+}  // namespace frontier

@@ -1,0 +1,111 @@
+// Shared helpers for engine tests: random scenes and the comparison of a method's id image
+// against brute force with the tie rule (two hits within 1e-6 relative distance).
+#pragma once
+
+#include "src/kdtree.h"
+#include "src/ray_walk.h"
+#include "src/render.h"
+#include "src/scene.h"
+#include "src/view.h"
+
+#include <random>
+#include <string>
+
+namespace frontier::testing {
+
+struct Comparison {
+  size_t pixels = 0;
+  size_t mismatches = 0;  // differing ids that are not ties: must be zero
+  size_t ties = 0;        // differing ids at tie pixels
+  std::string first_mismatch;
+};
+
+// Brute-force ids with tie flags.
+inline void brute_reference(const Scene& scene, const View& view, std::vector<uint32_t>& ids,
+                            std::vector<uint8_t>& tie) {
+  ids.assign(view.pixels(), kNoPrim);
+  tie.assign(view.pixels(), 0);
+  Counters c;
+  for (int y = 0; y < view.height; ++y) {
+    for (int x = 0; x < view.width; ++x) {
+      const Ray ray = view.ray(x, y);
+      double second = kInfinity;
+      const RayHit hit = brute_force_hit(scene, ray, view.tmin(ray), c, &second);
+      const size_t i = size_t(y) * size_t(view.width) + size_t(x);
+      if (hit.hit()) {
+        ids[i] = scene.prims[hit.prim].source;
+        tie[i] = (second - hit.t) <= 1e-6 * std::max(hit.t, 1e-12) ? 1 : 0;
+      }
+    }
+  }
+}
+
+inline Comparison compare_ids(const std::vector<uint32_t>& reference, const std::vector<uint8_t>& tie,
+                              const std::vector<uint32_t>& ids, int width) {
+  Comparison c;
+  c.pixels = reference.size();
+  for (size_t i = 0; i < reference.size(); ++i) {
+    if (reference[i] == ids[i]) continue;
+    if (tie[i]) {
+      ++c.ties;
+    } else {
+      if (c.mismatches == 0) {
+        c.first_mismatch = "pixel (" + std::to_string(i % size_t(width)) + "," + std::to_string(i / size_t(width)) +
+                           "): brute " + std::to_string(int64_t(reference[i] == kNoPrim ? -1 : reference[i])) +
+                           " method " + std::to_string(int64_t(ids[i] == kNoPrim ? -1 : ids[i]));
+      }
+      ++c.mismatches;
+    }
+  }
+  return c;
+}
+
+inline std::vector<uint32_t> render_ids(const Scene& scene, const KdTree& tree, const View& view, Method method,
+                                        int threads = 2) {
+  RenderOptions options;
+  options.method = method;
+  options.threads = threads;
+  options.shade = false;
+  SampleBuffer buffer;
+  render_frame(scene, tree, view, options, buffer);
+  return id_image(scene, buffer);
+}
+
+// A random scene of spheres, triangles, boxes and cones inside [-1,1]^3 (some larger).
+inline Scene random_scene(std::mt19937_64& rng, int count) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0), size(0.02, 0.4);
+  std::uniform_int_distribution<int> kind(0, 9);
+  Scene scene;
+  scene.materials.push_back({});
+  for (int i = 0; i < count; ++i) {
+    const Vec3 c(u(rng), u(rng), u(rng));
+    const double s = size(rng);
+    switch (kind(rng)) {
+      case 0: case 1: case 2:
+        scene.add_sphere({c, s}, uint32_t(i), 0);
+        break;
+      case 3: case 4: case 5: case 6: {
+        const Vec3 a = c + s * Vec3(u(rng), u(rng), u(rng)), b = c + s * Vec3(u(rng), u(rng), u(rng));
+        scene.add_triangle({c, a, b}, uint32_t(i), 0);
+        break;
+      }
+      case 7:
+        scene.add_box({Aabb(c, c + s * Vec3(std::abs(u(rng)) + 0.1, std::abs(u(rng)) + 0.1, std::abs(u(rng)) + 0.1))},
+                      uint32_t(i), 0);
+        break;
+      default: {
+        const Vec3 d(u(rng), u(rng), u(rng));
+        if (glm::length(d) < 0.1) {
+          scene.add_sphere({c, s}, uint32_t(i), 0);
+        } else {
+          scene.add_cone({c, s * 0.5, c + 2.0 * s * glm::normalize(d), s * 0.3 * (kind(rng) % 2)}, uint32_t(i), 0);
+        }
+        break;
+      }
+    }
+  }
+  scene.input_primitives = uint32_t(count);
+  return scene;
+}
+
+}  // namespace frontier::testing

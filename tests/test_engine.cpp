@@ -1,0 +1,196 @@
+// Frustum casting and ray walking against brute force on random scenes and cameras, plus the
+// hard cases: eye on split planes and cell corners, axis-parallel views, extreme field of view,
+// far-from-origin coordinates, one-primitive cells, closed meshes that must not leak.
+#include "tests/engine_util.h"
+
+#include <gtest/gtest.h>
+
+namespace frontier {
+namespace {
+
+using testing::brute_reference;
+using testing::compare_ids;
+using testing::Comparison;
+using testing::render_ids;
+
+// Renders with ray walking and frustum casting, compares both with brute force.
+void expect_matches_brute(const Scene& scene, const KdTree& tree, const View& view, const std::string& what,
+                          size_t* ties_out = nullptr) {
+  std::vector<uint32_t> ref;
+  std::vector<uint8_t> tie;
+  brute_reference(scene, view, ref, tie);
+  for (Method m : {Method::RayWalk, Method::Frustum}) {
+    const Comparison c = compare_ids(ref, tie, render_ids(scene, tree, view, m), view.width);
+    EXPECT_EQ(c.mismatches, 0u) << what << " " << method_name(m) << ": " << c.first_mismatch;
+    if (ties_out) *ties_out += c.ties;
+  }
+}
+
+Camera camera_at(const Vec3& eye, const Vec3& at, double fov = 60.0) {
+  Camera c;
+  c.eye = eye;
+  c.look_at = at;
+  c.up = std::abs(glm::normalize(at - eye).z) > 0.99 ? Vec3(0, 1, 0) : Vec3(0, 0, 1);
+  c.vfov_deg = fov;
+  return c;
+}
+
+TEST(EngineRandom, TwoHundredScenesMatchBruteForce) {
+  std::mt19937_64 rng(20261122);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  size_t ties = 0, pixels = 0;
+  for (int s = 0; s < 210; ++s) {
+    Scene scene = testing::random_scene(rng, 20 + s % 120);
+    KdBuildOptions opt;
+    opt.max_cell_prims = 1 + uint32_t(s % 5);
+    const KdTree tree = KdTree::build(scene, opt);
+    const Aabb root = tree.bounds();
+    Vec3 eye;
+    switch (s % 3) {
+      case 0: eye = Vec3(u(rng), u(rng), u(rng)) * 0.9; break;                       // inside
+      case 1: eye = Vec3(u(rng), u(rng), u(rng)) * 3.0 + Vec3(0, 0, 3.5); break;    // outside
+      default: {                                                                      // on the boundary
+        eye = Vec3(u(rng), u(rng), u(rng)) * 0.5;
+        eye[s % 3] = (s % 2) ? root.hi[s % 3] : root.lo[s % 3];
+      }
+    }
+    const Vec3 at = Vec3(u(rng), u(rng), u(rng)) * 0.3 + (glm::length(eye) < 1e-3 ? Vec3(0.5, 0, 0) : Vec3(0));
+    Camera cam = camera_at(eye, at, 30.0 + 10.0 * (s % 10));
+    const View view(cam, 41 + s % 7, 37 + s % 5);
+    expect_matches_brute(scene, tree, view, "scene " + std::to_string(s), &ties);
+    pixels += 2 * view.pixels();
+    if (HasFailure()) return;
+  }
+  EXPECT_LT(double(ties), 1e-4 * double(pixels)) << ties << " tie pixels of " << pixels;
+}
+
+TEST(EngineHardCases, EyeOnSplitPlanesAndCellCorners) {
+  std::mt19937_64 rng(7);
+  Scene scene = testing::random_scene(rng, 150);
+  const KdTree tree = KdTree::build(scene, {});
+  ASSERT_GT(tree.cells().size(), 8u);
+  int tried = 0;
+  for (size_t n = 0; n < tree.nodes().size() && tried < 12; n += 3) {
+    const KdTree::Node& node = tree.nodes()[n];
+    if (node.is_leaf()) continue;
+    // Eye exactly on this split plane, at the centre of the root in the other axes.
+    Vec3 eye = tree.bounds().center();
+    eye[int(node.axis_or_leaf)] = node.split;
+    for (const Vec3& dir : {Vec3(1, 0.3, 0.2), Vec3(-1, 0.1, -0.3), Vec3(0.2, 1, 0.1)}) {
+      expect_matches_brute(scene, tree, View(camera_at(eye, eye + dir), 33, 33), "split plane");
+    }
+    ++tried;
+  }
+  // Eye exactly on cell corners.
+  for (size_t c = 0; c < tree.cells().size(); c += std::max<size_t>(1, tree.cells().size() / 10)) {
+    const Vec3 eye = tree.cell(int32_t(c)).bounds.lo;
+    expect_matches_brute(scene, tree, View(camera_at(eye, Vec3(0.0)), 33, 33), "cell corner");
+    expect_matches_brute(scene, tree, View(camera_at(eye, eye + Vec3(1, 1, 1)), 33, 33), "cell corner diag");
+  }
+}
+
+TEST(EngineHardCases, AxisParallelViewDirections) {
+  std::mt19937_64 rng(11);
+  Scene scene = testing::random_scene(rng, 120);
+  const KdTree tree = KdTree::build(scene, {});
+  // Odd resolution: the centre pixel's ray is exactly axis-parallel.
+  for (int a = 0; a < 3; ++a) {
+    for (double sign : {-1.0, 1.0}) {
+      Vec3 dir(0.0);
+      dir[a] = sign;
+      for (const Vec3& eye : {Vec3(0.0), -2.5 * dir, Vec3(0.1, 0.2, 0.3)}) {
+        expect_matches_brute(scene, tree, View(camera_at(eye, eye + dir, 50.0), 33, 33), "axis-parallel");
+      }
+    }
+  }
+}
+
+TEST(EngineHardCases, WideFieldOfViewAndOneMeshPerCell) {
+  std::mt19937_64 rng(13);
+  Scene scene = testing::random_scene(rng, 100);
+  KdBuildOptions single;
+  single.max_cell_prims = 1;
+  single.intersection_cost = 100.0;
+  const KdTree tree = KdTree::build(scene, single);
+  size_t max_count = 0, ones = 0;
+  for (const auto& c : tree.cells()) {
+    max_count = std::max<size_t>(max_count, c.count);
+    ones += c.count <= 1 ? 1 : 0;
+  }
+  EXPECT_GT(ones, tree.cells().size() / 2) << "most cells should hold at most one primitive";
+  expect_matches_brute(scene, tree, View(camera_at(Vec3(0.05, -0.1, 0.0), Vec3(0.3, 1, 0), 170.0), 49, 49), "170 fov");
+  expect_matches_brute(scene, tree, View(camera_at(Vec3(0.0, -3.0, 0.0), Vec3(0.0), 170.0), 49, 49), "170 fov out");
+}
+
+TEST(EngineHardCases, FarFromOriginRendersTheSameIds) {
+  std::mt19937_64 rng(17);
+  Scene scene = testing::random_scene(rng, 120);
+  Camera cam = camera_at(Vec3(0.3, -2.8, 0.4), Vec3(0.0), 50.0);
+  const View view(cam, 65, 65);
+  const KdTree tree = KdTree::build(scene, {});
+  const auto ids = render_ids(scene, tree, view, Method::Frustum);
+  Scene far = scene;
+  const Vec3 offset(1e6, -1e6, 1e6);
+  far.translate(offset);
+  cam.eye += offset;
+  cam.look_at += offset;
+  const KdTree far_tree = KdTree::build(far, {});
+  const View far_view(cam, 65, 65);
+  std::vector<uint32_t> ref;
+  std::vector<uint8_t> tie;
+  brute_reference(scene, view, ref, tie);
+  for (Method m : {Method::RayWalk, Method::Frustum}) {
+    const auto far_ids = render_ids(far, far_tree, far_view, m);
+    const Comparison c = compare_ids(ref, tie, far_ids, 65);
+    // Translation perturbs hit distances at the 1e-10 level: allow only tie pixels to differ.
+    EXPECT_EQ(c.mismatches, 0u) << method_name(m) << ": " << c.first_mismatch;
+  }
+  EXPECT_EQ(compare_ids(ref, tie, ids, 65).mismatches, 0u);
+}
+
+// A closed UV sphere of triangles: no background pixel may appear inside its silhouette.
+TEST(EngineHardCases, ClosedTessellatedSphereLeaksNothing) {
+  Scene scene;
+  scene.materials.push_back({});
+  const int stacks = 24, slices = 48;
+  auto point = [&](int i, int j) {
+    const double th = 3.14159265358979323846 * i / stacks, ph = 2 * 3.14159265358979323846 * (j % slices) / slices;
+    return Vec3(std::sin(th) * std::cos(ph), std::sin(th) * std::sin(ph), std::cos(th));
+  };
+  uint32_t id = 0;
+  for (int i = 0; i < stacks; ++i) {
+    for (int j = 0; j < slices; ++j) {
+      const Vec3 a = point(i, j), b = point(i + 1, j), c = point(i + 1, j + 1), d = point(i, j + 1);
+      if (i != stacks - 1) scene.add_triangle({a, b, c}, id++, 0);
+      if (i != 0) scene.add_triangle({a, c, d}, id++, 0);
+    }
+  }
+  scene.input_primitives = id;
+  KdBuildOptions opt;
+  opt.max_cell_prims = 4;
+  const KdTree tree = KdTree::build(scene, opt);
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> g;
+  // The inscribed radius of the tessellation: rays passing closer than this must hit.
+  const double inner = std::cos(3.14159265358979323846 / stacks) * std::cos(3.14159265358979323846 / slices) * 0.98;
+  for (int k = 0; k < 100; ++k) {
+    Vec3 dir = glm::normalize(Vec3(g(rng), g(rng), g(rng)));
+    Camera cam = camera_at(3.0 * dir, Vec3(0.0), 45.0);
+    const View view(cam, 65, 65);
+    const auto ids = render_ids(scene, tree, view, Method::Frustum);
+    const auto walk_ids = render_ids(scene, tree, view, Method::RayWalk);
+    size_t leaks = 0;
+    for (int y = 0; y < view.height; ++y) {
+      for (int x = 0; x < view.width; ++x) {
+        const Ray r = view.ray(x, y);
+        const double dist = glm::length(glm::cross(r.dir, -r.origin));  // distance of the ray to the centre
+        const size_t i = size_t(y) * 65 + size_t(x);
+        if (dist < inner && (ids[i] == kNoPrim || walk_ids[i] == kNoPrim)) ++leaks;
+      }
+    }
+    ASSERT_EQ(leaks, 0u) << "direction " << k;
+  }
+}
+
+}  // namespace
+}  // namespace frontier
