@@ -16,6 +16,11 @@ namespace {
 
 constexpr uint8_t kLeft = 1, kRight = 2, kBottom = 4, kTop = 8;  // straddle bits per plane
 constexpr uint32_t kMaxFillOccluders = 6;
+// Resolve a frustum in its cell when the elements' screen footprints add up to at most this
+// many times its pixel count; otherwise subdivide.
+constexpr double kResolveFactor = 2.0;
+// Frusta up to this many pixels count their open pixels exactly after resolving in a cell.
+constexpr size_t kExactOpenCount = 64;
 // Quadrant order of children on the next level: diagonal quadrants first, so that an
 // interrupted level leaves samples spread over the screen (interleaved order, §5.2).
 constexpr std::array<int, 4> kQuadrantOrder = {0, 3, 1, 2};
@@ -35,6 +40,17 @@ namespace {
 constexpr uint8_t kFresh = 0, kEmpty = 1, kList = 2;
 }
 
+namespace {
+
+struct Pixel {
+  int x = 0, y = 0;
+  Ray ray;
+  double tmin = 0.0, tmax = 0.0;
+  RayHit hit;
+};
+
+}  // namespace
+
 struct FrustumCaster::Incidence {
   uint32_t ref;      // k-d tree reference (primitive + its bounds clipped to the cell)
   uint8_t straddle;  // planes (kLeft...) the bounds straddle; others: inside
@@ -47,6 +63,12 @@ struct FrustumCaster::Worker {
   std::vector<Incidence> scratch;            // a freshly collected list
   std::vector<double> fill_t;                // per-pixel hits of the fill element
   std::vector<uint32_t> occluders;
+  std::vector<PixelRect> rects;              // screen footprints of the incidence list
+  // resolve_in_cell's sparse per-pixel state: slot_stamp[i] == stamp marks pixel i as seen in
+  // this call, slot[i] indexes `open` (a frame-sized map without clearing).
+  std::vector<uint32_t> slot_stamp, slot;
+  uint32_t stamp = 0;
+  std::vector<Pixel> open;
   Counters counters;
   uint16_t index = 0;  // which arenas_in_ slot its arena_out becomes
 };
@@ -82,6 +104,14 @@ void FrustumCaster::begin(const View& view, SampleBuffer& buffer, CellMarks& mar
   marks.resize(tree_.cells().size());
   marks.begin_frame();
   samples_done_ = 0;
+  ++frame_;
+  if (ref_rect_count_ != tree_.reference_count()) {
+    ref_rect_count_ = tree_.reference_count();
+    ref_rect_ = std::make_unique<std::atomic<uint64_t>[]>(ref_rect_count_);
+    ref_rect_stamp_ = std::make_unique<std::atomic<uint32_t>[]>(ref_rect_count_);
+    ref_distance_ = std::make_unique<std::atomic<double>[]>(ref_rect_count_);
+    for (size_t i = 0; i < ref_rect_count_; ++i) ref_rect_stamp_[i].store(0, std::memory_order_relaxed);
+  }
   // One plane per pixel column and row, through the eye (§3.1: children reuse them).
   column_normal_.resize(static_cast<size_t>(view.width));
   row_normal_.resize(static_cast<size_t>(view.height));
@@ -96,6 +126,9 @@ void FrustumCaster::begin(const View& view, SampleBuffer& buffer, CellMarks& mar
     row_normal_[static_cast<size_t>(y)] = n;
   }
   for (auto& w : workers_) {
+    w->slot_stamp.assign(view.pixels(), 0u);
+    w->slot.resize(view.pixels());
+    w->stamp = 0;
     for (auto& c : w->children) c.clear();
     w->arena_out.clear();
     w->remaining.clear();
@@ -220,7 +253,7 @@ void FrustumCaster::fill_background(const Job& job, Worker& w) {
   }
 }
 
-void FrustumCaster::resolve_by_walking(const Job& job, Worker& w) {
+void FrustumCaster::resolve_by_walking(const Job& job, Worker& w, bool from_next_cell) {
   for (int y = job.y0; y <= job.y1; ++y) {
     for (int x = job.x0; x <= job.x1; ++x) {
       const size_t i = static_cast<size_t>(y) * static_cast<size_t>(view_.width) + static_cast<size_t>(x);
@@ -228,9 +261,15 @@ void FrustumCaster::resolve_by_walking(const Job& job, Worker& w) {
       const Ray ray = view_.ray(x, y);
       const double tmin = view_.tmin(ray);
       ++w.counters.rays_walked;
-      const RayHit hit = job.cell == KdTree::kNone
-                             ? cast_ray(scene_, tree_, ray, tmin, w.counters, marks_)
-                             : walk_ray(scene_, tree_, ray, tmin, job.cell, w.counters, marks_);
+      RayHit hit;
+      if (job.cell == KdTree::kNone) {
+        hit = cast_ray(scene_, tree_, ray, tmin, w.counters, marks_);
+      } else if (from_next_cell) {
+        const int32_t next = tree_.arrival(job.cell, ray, tree_.exit(job.cell, ray));
+        if (next != KdTree::kNone) hit = walk_ray(scene_, tree_, ray, tmin, next, w.counters, marks_);
+      } else {
+        hit = walk_ray(scene_, tree_, ray, tmin, job.cell, w.counters, marks_);
+      }
       confirm(x, y, hit.prim, hit.t, ray, w);
     }
   }
@@ -241,31 +280,44 @@ void FrustumCaster::resolve_by_walking(const Job& job, Worker& w) {
 bool FrustumCaster::collect(const Job& job, Worker& w) {
   w.scratch.clear();
   const KdTree::Cell& cell = tree_.cell(job.cell);
-  const Vec3& nl = column_normal_[static_cast<size_t>(job.x0)];
-  const Vec3& nr = column_normal_[static_cast<size_t>(job.x1)];
-  const Vec3& nb = row_normal_[static_cast<size_t>(job.y0)];
-  const Vec3& nt = row_normal_[static_cast<size_t>(job.y1)];
   w.counters.primitives_tested += cell.count;
   for (uint32_t r = cell.first; r < cell.first + cell.count; ++r) {
-    const Aabb& box = tree_.ref_bounds(r);
-    w.counters.plane_tests += 5;
-    if (!in_front(box)) continue;
+    const PixelRect rect = screen_rect(r);
+    w.counters.plane_tests += 4;
+    if (rect.bounded) {
+      if (rect.x1 < job.x0 || rect.x0 > job.x1 || rect.y1 < job.y0 || rect.y0 > job.y1) continue;
+      w.scratch.push_back({r, 0});
+      continue;
+    }
     uint8_t straddle = 0;
-    Side s = classify(nl, box);
-    if (s == Side::Outside) continue;
-    if (s == Side::Straddle) straddle |= kLeft;
-    s = classify(-nr, box);
-    if (s == Side::Outside) continue;
-    if (s == Side::Straddle) straddle |= kRight;
-    s = classify(nb, box);
-    if (s == Side::Outside) continue;
-    if (s == Side::Straddle) straddle |= kBottom;
-    s = classify(-nt, box);
-    if (s == Side::Outside) continue;
-    if (s == Side::Straddle) straddle |= kTop;
-    w.scratch.push_back({r, straddle});
+    if (classify_planes(job.x0, job.x1, job.y0, job.y1, tree_.ref_bounds(r), 0xF, straddle)) {
+      w.scratch.push_back({r, straddle});
+    }
   }
+  // Nearest first: later elements can then skip pixels already hit in front of their bounds.
+  std::sort(w.scratch.begin(), w.scratch.end(), [&](const Incidence& a, const Incidence& b) {
+    return eye_distance(a.ref) < eye_distance(b.ref);
+  });
   return !w.scratch.empty();
+}
+
+// Classifies bounds against the planes named in `planes` (kLeft... bits) of the frustum
+// x0..x1, y0..y1; updates the straddle bits. False when some plane rejects the bounds.
+bool FrustumCaster::classify_planes(int x0, int x1, int y0, int y1, const Aabb& box, uint8_t planes,
+                                    uint8_t& straddle) const {
+  auto test = [&](uint8_t bit, const Vec3& normal) {
+    if (!(planes & bit)) return true;
+    const Side side = classify(normal, box);
+    if (side == Side::Outside) return false;
+    if (side == Side::Straddle) {
+      straddle |= bit;
+    } else {
+      straddle &= static_cast<uint8_t>(~bit);
+    }
+    return true;
+  };
+  return test(kLeft, column_normal_[size_t(x0)]) && test(kRight, -column_normal_[size_t(x1)]) &&
+         test(kBottom, row_normal_[size_t(y0)]) && test(kTop, -row_normal_[size_t(y1)]);
 }
 
 void FrustumCaster::process(Job job, Worker& w) {
@@ -274,9 +326,9 @@ void FrustumCaster::process(Job job, Worker& w) {
                                                      {job.x0, job.y1}, {job.x1, job.y1}}};
   std::array<Ray, 4> rays;
   std::array<double, 4> tmins;
-  for (int k = 0; k < 4; ++k) {
-    rays[static_cast<size_t>(k)] = view_.ray(corner[static_cast<size_t>(k)][0], corner[static_cast<size_t>(k)][1]);
-    tmins[static_cast<size_t>(k)] = view_.tmin(rays[static_cast<size_t>(k)]);
+  for (size_t k = 0; k < 4; ++k) {
+    rays[k] = view_.ray(corner[k][0], corner[k][1]);
+    tmins[k] = view_.tmin(rays[k]);
   }
   while (true) {
     ++w.counters.frusta;
@@ -297,7 +349,7 @@ void FrustumCaster::process(Job job, Worker& w) {
         continue;
       }
       if (job.small()) {
-        resolve_by_walking(job, w);
+        resolve_by_walking(job, w, false);
         return;
       }
       const Aabb& root = tree_.bounds();
@@ -327,68 +379,209 @@ void FrustumCaster::process(Job job, Worker& w) {
       n = job.inc_count;
     }
 
-    if (n == 0) {
-      // Nothing impinges here: advance if all corner rays leave through one face into one cell.
-      std::array<KdTree::Exit, 4> exits;
-      std::array<int32_t, 4> next;
-      for (size_t k = 0; k < 4; ++k) {
-        exits[k] = tree_.exit(job.cell, rays[k]);
-        next[k] = tree_.arrival(job.cell, rays[k], exits[k]);
-      }
-      const bool agree = exits[0].face >= 0 &&
-                         std::all_of(exits.begin(), exits.end(), [&](const KdTree::Exit& e) { return e.face == exits[0].face; }) &&
-                         std::all_of(next.begin(), next.end(), [&](int32_t c) { return c == next[0]; });
-      if (agree) {
-        if (next[0] == KdTree::kNone) {
-          fill_background(job, w);
-          return;
-        }
-        job.cell = next[0];
-        job.state = kFresh;
-        continue;
-      }
-      if (job.small()) {
-        resolve_by_walking(job, w);
+    if (n > 0) {
+      // Either resolve the frustum's pixels against this cell's elements now (cheap when the
+      // elements' screen footprints are small against the frustum), or subdivide (§3.2).
+      const size_t npix = size_t(job.x1 - job.x0 + 1) * size_t(job.y1 - job.y0 + 1);
+      const bool have_rects = !job.small();
+      if (job.small() || footprint(job, list, n, w) <= kResolveFactor * double(npix)) {
+        if (resolve_in_cell(job, list, n, have_rects, w) == 0) return;
+      } else {
+        if (corners_and_fill(job, list, n, rays, tmins, w)) return;
+        split(job, list, n, w);
         return;
       }
-      split(job, nullptr, 0, w);
-      return;
     }
 
-    if (job.small()) {
-      resolve_by_walking(job, w);
-      return;
-    }
-    // Corner rays against the impinging elements; a corner hit inside this cell is final.
-    std::array<RayHit, 4> hits;
+    // Nothing left to find in this cell for the unresolved pixels: advance if all corner rays
+    // leave through one face into one cell (every interior ray then does the same).
+    std::array<KdTree::Exit, 4> exits;
+    std::array<int32_t, 4> next;
     for (size_t k = 0; k < 4; ++k) {
-      const int x = corner[k][0], y = corner[k][1];
-      const size_t i = static_cast<size_t>(y) * static_cast<size_t>(W) + static_cast<size_t>(x);
-      const KdTree::Exit e = tree_.exit(job.cell, rays[k]);
-      const double tmax = e.t + cell_slack(e.t, slack_scale_);
-      RayHit best;
-      for (uint32_t j = 0; j < n; ++j) {
-        const uint32_t prim = tree_.ref(list[j].ref);
-        double t;
-        ++w.counters.ray_primitive_tests;
-        if (scene_.intersect(prim, rays[k], tmins[k], std::min(tmax, best.t), t)) {
-          ++w.counters.hits;
-          if (t < best.t || (t == best.t && prim < best.prim)) best = {prim, t};
-        }
-      }
-      hits[k] = best;
-      if (best.hit() && !buffer_->confirmed(i)) confirm(x, y, best.prim, best.t, rays[k], w);
+      exits[k] = tree_.exit(job.cell, rays[k]);
+      next[k] = tree_.arrival(job.cell, rays[k], exits[k]);
     }
-    const bool same = hits[0].hit() && std::all_of(hits.begin(), hits.end(), [&](const RayHit& h) {
-                        return h.prim == hits[0].prim;
-                      });
-    if (same && try_fill(job, list, n, hits[0].prim, w)) {
-      ++w.counters.frustum_fills;
+    const bool agree = exits[0].face >= 0 &&
+                       std::all_of(exits.begin(), exits.end(), [&](const KdTree::Exit& e) { return e.face == exits[0].face; }) &&
+                       std::all_of(next.begin(), next.end(), [&](int32_t c) { return c == next[0]; });
+    if (agree) {
+      if (next[0] == KdTree::kNone) {
+        fill_background(job, w);
+        return;
+      }
+      job.cell = next[0];
+      job.state = kFresh;
+      continue;
+    }
+    if (job.small()) {
+      resolve_by_walking(job, w, true);
       return;
     }
-    split(job, list, n, w);
+    split(job, nullptr, 0, w);
     return;
   }
+  (void)W;
+}
+
+// Screen rectangle of a reference's bounds, computed once per frame and shared by all threads
+// (written atomically: two threads computing the same rectangle store the same bits). For
+// bounds in front of the eye, testing the rectangle against a frustum's pixel rectangle is the
+// ternary classification against its four planes (every pixel column and row is one plane
+// through the eye), done once per frame instead of once per frustum.
+FrustumCaster::PixelRect FrustumCaster::screen_rect(uint32_t ref) const {
+  constexpr uint64_t kUnbounded = 0xFFFF;
+  if (ref_rect_stamp_[ref].load(std::memory_order_acquire) != frame_) {
+    const Aabb& box = tree_.ref_bounds(ref);
+    PixelRect r;
+    uint64_t bits;
+    if (!in_front(box)) {
+      bits = 2 | (1ull << 32);  // empty: x0 = 1 > x1 = 0
+    } else if (view_.project(box, r.x0, r.y0, r.x1, r.y1)) {
+      bits = uint64_t(uint16_t(r.x0 + 1)) | (uint64_t(uint16_t(r.y0 + 1)) << 16) |
+             (uint64_t(uint16_t(r.x1 + 1)) << 32) | (uint64_t(uint16_t(r.y1 + 1)) << 48);
+    } else {
+      bits = kUnbounded;
+    }
+    ref_rect_[ref].store(bits, std::memory_order_relaxed);
+    ref_distance_[ref].store(distance_to_box(view_.eye, box), std::memory_order_relaxed);
+    ref_rect_stamp_[ref].store(frame_, std::memory_order_release);
+  }
+  const uint64_t bits = ref_rect_[ref].load(std::memory_order_relaxed);
+  if ((bits & 0xFFFF) == kUnbounded) return {0, 0, view_.width - 1, view_.height - 1, false};
+  return {int(bits & 0xFFFF) - 1, int((bits >> 16) & 0xFFFF) - 1, int((bits >> 32) & 0xFFFF) - 1,
+          int((bits >> 48) & 0xFFFF) - 1, true};
+}
+
+double FrustumCaster::eye_distance(uint32_t ref) const {
+  screen_rect(ref);
+  return ref_distance_[ref].load(std::memory_order_relaxed);
+}
+
+double FrustumCaster::footprint(const Job& job, const Incidence* list, uint32_t n, Worker& w) const {
+  w.rects.resize(n);
+  double area = 0.0;
+  for (uint32_t j = 0; j < n; ++j) {
+    PixelRect r = screen_rect(list[j].ref);
+    r.x0 = std::max(r.x0, job.x0);
+    r.y0 = std::max(r.y0, job.y0);
+    r.x1 = std::min(r.x1, job.x1);
+    r.y1 = std::min(r.y1, job.y1);
+    w.rects[j] = r;
+    if (r.x0 <= r.x1 && r.y0 <= r.y1) area += double(r.x1 - r.x0 + 1) * double(r.y1 - r.y0 + 1);
+  }
+  return area;
+}
+
+// Tests every unresolved pixel of the frustum against the elements of this cell whose screen
+// footprint covers it; pixels with a hit inside the cell are confirmed (the nearest such hit is
+// the first hit: earlier cells held nothing for this frustum). Work is proportional to the
+// footprints, not to the frustum's area. Returns 0 when no pixel of the frustum is left open
+// (checked exactly only for small frusta; large ones report themselves as open).
+size_t FrustumCaster::resolve_in_cell(const Job& job, const Incidence* list, uint32_t n, bool have_rects,
+                                      Worker& w) {
+  if (!have_rects) footprint(job, list, n, w);
+  const size_t W = size_t(view_.width);
+  if (++w.stamp == 0) {
+    std::fill(w.slot_stamp.begin(), w.slot_stamp.end(), 0u);
+    w.stamp = 1;
+  }
+  w.open.clear();
+  constexpr uint32_t kDoneSlot = 0xFFFFFFFFu;
+  for (uint32_t j = 0; j < n; ++j) {
+    const PixelRect& r = w.rects[j];
+    const uint32_t prim = tree_.ref(list[j].ref);
+    const double distance = eye_distance(list[j].ref);
+    for (int y = r.y0; y <= r.y1; ++y) {
+      for (int x = r.x0; x <= r.x1; ++x) {
+        const size_t i = size_t(y) * W + size_t(x);
+        uint32_t slot;
+        if (w.slot_stamp[i] != w.stamp) {
+          w.slot_stamp[i] = w.stamp;
+          if (buffer_->confirmed(i)) {
+            w.slot[i] = kDoneSlot;
+            continue;
+          }
+          Pixel p;
+          p.x = x;
+          p.y = y;
+          p.ray = view_.ray(x, y);
+          p.tmin = view_.tmin(p.ray);
+          const KdTree::Exit e = tree_.exit(job.cell, p.ray);
+          p.tmax = e.t + cell_slack(e.t, slack_scale_);
+          slot = static_cast<uint32_t>(w.open.size());
+          w.slot[i] = slot;
+          w.open.push_back(p);
+        } else {
+          slot = w.slot[i];
+          if (slot == kDoneSlot) continue;
+        }
+        Pixel& p = w.open[slot];
+        if (p.hit.t < distance) continue;  // already hit in front of these bounds
+        double t;
+        ++w.counters.ray_primitive_tests;
+        if (scene_.intersect(prim, p.ray, p.tmin, std::min(p.tmax, p.hit.t), t)) {
+          ++w.counters.hits;
+          if (t < p.hit.t || (t == p.hit.t && prim < p.hit.prim)) p.hit = {prim, t};
+        }
+      }
+    }
+  }
+  for (const Pixel& p : w.open) {
+    if (p.hit.hit()) confirm(p.x, p.y, p.hit.prim, p.hit.t, p.ray, w);
+  }
+  const size_t npix = size_t(job.x1 - job.x0 + 1) * size_t(job.y1 - job.y0 + 1);
+  if (npix > kExactOpenCount) return npix;
+  size_t remaining = 0;
+  for (int y = job.y0; y <= job.y1; ++y) {
+    for (int x = job.x0; x <= job.x1; ++x) remaining += buffer_->confirmed(size_t(y) * W + size_t(x)) ? 0 : 1;
+  }
+  return remaining;
+}
+
+// Corner rays against the impinging elements (a corner hit inside this cell is final), then
+// the §4 fill when all four corners see the same element. True if the frustum is resolved.
+bool FrustumCaster::corners_and_fill(const Job& job, const Incidence* list, uint32_t n,
+                                     const std::array<Ray, 4>& rays, const std::array<double, 4>& tmins,
+                                     Worker& w) {
+  const int W = view_.width;
+  const std::array<std::array<int, 2>, 4> corner = {{{job.x0, job.y0}, {job.x1, job.y0},
+                                                     {job.x0, job.y1}, {job.x1, job.y1}}};
+  std::array<RayHit, 4> hits;
+  for (size_t k = 0; k < 4; ++k) {
+    const int x = corner[k][0], y = corner[k][1];
+    const size_t i = static_cast<size_t>(y) * static_cast<size_t>(W) + static_cast<size_t>(x);
+    const KdTree::Exit e = tree_.exit(job.cell, rays[k]);
+    const double tmax = e.t + cell_slack(e.t, slack_scale_);
+    RayHit best;
+    for (uint32_t j = 0; j < n; ++j) {
+      const uint32_t prim = tree_.ref(list[j].ref);
+      double t;
+      ++w.counters.ray_primitive_tests;
+      if (scene_.intersect(prim, rays[k], tmins[k], std::min(tmax, best.t), t)) {
+        ++w.counters.hits;
+        if (t < best.t || (t == best.t && prim < best.prim)) best = {prim, t};
+      }
+    }
+    hits[k] = best;
+    if (best.hit() && !buffer_->confirmed(i)) confirm(x, y, best.prim, best.t, rays[k], w);
+  }
+  const bool same = hits[0].hit() && std::all_of(hits.begin(), hits.end(), [&](const RayHit& h) {
+                      return h.prim == hits[0].prim;
+                    });
+  if (!same) return false;
+  // Quick rejection before the per-pixel pass: too many elements come nearer than the corners.
+  double corner_t = 0.0;
+  for (const RayHit& h : hits) corner_t = std::max(corner_t, h.t);
+  uint32_t near_elements = 0;
+  for (uint32_t j = 0; j < n; ++j) {
+    if (tree_.ref(list[j].ref) != hits[0].prim &&
+        distance_to_box(view_.eye, tree_.ref_bounds(list[j].ref)) <= corner_t) {
+      if (++near_elements > kMaxFillOccluders) return false;
+    }
+  }
+  if (!try_fill(job, list, n, hits[0].prim, w)) return false;
+  ++w.counters.frustum_fills;
+  return true;
 }
 
 // Resolves every pixel of the frustum against `element` and the few impinging elements whose
@@ -498,28 +691,26 @@ void FrustumCaster::split(const Job& job, const Incidence* list, uint32_t n, Wor
       const bool new_bottom = r.y0 != job.y0, new_top = r.y1 != job.y1;
       for (uint32_t j = 0; j < n; ++j) {
         const Incidence& inc = list[j];
+        const PixelRect rect = screen_rect(inc.ref);
+        ++w.counters.plane_tests;
+        if (rect.bounded) {
+          if (rect.x1 < r.x0 || rect.x0 > r.x1 || rect.y1 < r.y0 || rect.y0 > r.y1) continue;
+          w.arena_out.push_back(inc);
+          continue;
+        }
+        // Straddle inheritance (§4): bounds straddling both planes of an axis straddle every
+        // plane between them, so descendants never test that axis again.
         uint8_t s = inc.straddle;
         const bool spans_x = (s & (kLeft | kRight)) == (kLeft | kRight);
         const bool spans_y = (s & (kBottom | kTop)) == (kBottom | kTop);
-        const Aabb& box = tree_.ref_bounds(inc.ref);
-        bool rejected = false;
-        auto test = [&](bool fresh, bool spans, const Vec3& normal, uint8_t bit) {
-          if (rejected || !fresh || spans) return;
-          ++w.counters.plane_tests;
-          const Side side = classify(normal, box);
-          if (side == Side::Outside) {
-            rejected = true;
-          } else if (side == Side::Straddle) {
-            s |= bit;
-          } else {
-            s &= static_cast<uint8_t>(~bit);
-          }
-        };
-        test(new_left, spans_x, column_normal_[static_cast<size_t>(r.x0)], kLeft);
-        test(new_right, spans_x, -column_normal_[static_cast<size_t>(r.x1)], kRight);
-        test(new_bottom, spans_y, row_normal_[static_cast<size_t>(r.y0)], kBottom);
-        test(new_top, spans_y, -row_normal_[static_cast<size_t>(r.y1)], kTop);
-        if (!rejected) w.arena_out.push_back({inc.ref, s});
+        uint8_t planes = 0;
+        if (new_left && !spans_x) planes |= kLeft;
+        if (new_right && !spans_x) planes |= kRight;
+        if (new_bottom && !spans_y) planes |= kBottom;
+        if (new_top && !spans_y) planes |= kTop;
+        if (classify_planes(r.x0, r.x1, r.y0, r.y1, tree_.ref_bounds(inc.ref), planes, s)) {
+          w.arena_out.push_back({inc.ref, s});
+        }
       }
       child.inc_count = static_cast<uint32_t>(w.arena_out.size()) - child.inc_begin;
       child.state = child.inc_count > 0 ? kList : kEmpty;

@@ -27,6 +27,7 @@
 #include "src/shading.h"
 #include "src/view.h"
 
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <memory>
@@ -64,8 +65,21 @@ class FrustumCaster {
   void process(Job job, Worker& w);
   Side classify(const Vec3& normal, const Aabb& box) const;
   bool in_front(const Aabb& box) const;
+  bool classify_planes(int x0, int x1, int y0, int y1, const Aabb& box, uint8_t planes, uint8_t& straddle) const;
   bool collect(const Job& job, Worker& w);
-  void resolve_by_walking(const Job& job, Worker& w);
+  void resolve_by_walking(const Job& job, Worker& w, bool from_next_cell);
+  // Pixel rectangle covered by a reference's bounds. `bounded` is false when the bounds reach
+  // behind the eye plane: then the rectangle is the whole view and plane tests decide.
+  struct PixelRect {
+    int x0, y0, x1, y1;
+    bool bounded = true;
+  };
+  PixelRect screen_rect(uint32_t ref) const;
+  double eye_distance(uint32_t ref) const;
+  double footprint(const Job& job, const Incidence* list, uint32_t n, Worker& w) const;
+  size_t resolve_in_cell(const Job& job, const Incidence* list, uint32_t n, bool have_rects, Worker& w);
+  bool corners_and_fill(const Job& job, const Incidence* list, uint32_t n, const std::array<Ray, 4>& rays,
+                        const std::array<double, 4>& tmins, Worker& w);
   void fill_background(const Job& job, Worker& w);
   bool try_fill(const Job& job, const Incidence* list, uint32_t n, uint32_t element, Worker& w);
   void split(const Job& job, const Incidence* list, uint32_t n, Worker& w);
@@ -84,6 +98,13 @@ class FrustumCaster {
 
   std::vector<Vec3> column_normal_;  // plane of pixel column x, oriented towards larger x
   std::vector<Vec3> row_normal_;     // plane of pixel row y, oriented towards larger y
+
+  // Per-reference screen rectangles of this frame (lazily filled, see screen_rect).
+  uint32_t frame_ = 0;
+  size_t ref_rect_count_ = 0;
+  std::unique_ptr<std::atomic<uint64_t>[]> ref_rect_;
+  std::unique_ptr<std::atomic<uint32_t>[]> ref_rect_stamp_;
+  std::unique_ptr<std::atomic<double>[]> ref_distance_;  // eye to clipped bounds
 
   std::vector<Job> current_;                      // jobs of the current level not yet run
   std::vector<std::vector<Incidence>> arenas_in_;  // incidence lists the current level reads

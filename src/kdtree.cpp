@@ -119,7 +119,7 @@ class KdBuilder {
     tree_.depth_ = std::max(tree_.depth_, depth);
     const double leaf_cost = options_.intersection_cost * static_cast<double>(items.size());
     Split split;
-    if (!items.empty() && depth < max_depth_) split = best_split(items, box);
+    if (items.size() > options_.min_cell_prims && depth < max_depth_) split = best_split(items, box);
     bool do_split = split.axis >= 0 && split.cost < leaf_cost;
     if (!do_split && split.axis >= 0 && items.size() > options_.max_cell_prims &&
         split.left < items.size() && split.right < items.size()) {

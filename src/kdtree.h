@@ -21,6 +21,7 @@ namespace frontier {
 
 struct KdBuildOptions {
   uint32_t max_cell_prims = 8;   // cells above this size split even if SAH prefers a leaf
+  uint32_t min_cell_prims = 0;   // cells at or below this size never split (coarse cells)
   uint32_t max_depth = 0;        // 0: 8 + 1.3 log2(n)
   double traversal_cost = 1.0;
   double intersection_cost = 1.5;

@@ -15,6 +15,10 @@ struct View {
   Vec3 base{0.0};    // unnormalised direction of pixel (0, 0)
   Vec3 step_x{0.0};
   Vec3 step_y{0.0};
+  Vec3 right{1.0, 0.0, 0.0};
+  Vec3 up{0.0, 1.0, 0.0};
+  double half_w = 1.0;  // tan of half the horizontal field of view
+  double half_h = 1.0;
   int width = 0;
   int height = 0;
   double near = 0.0;
@@ -22,10 +26,10 @@ struct View {
   View() = default;
   View(const Camera& camera, int w, int h) : eye(camera.eye), width(w), height(h), near(camera.near) {
     forward = glm::normalize(camera.look_at - camera.eye);
-    const Vec3 right = glm::normalize(glm::cross(forward, camera.up));
-    const Vec3 up = glm::cross(right, forward);
-    const double half_h = std::tan(0.5 * camera.vfov_deg * 3.14159265358979323846 / 180.0);
-    const double half_w = half_h * static_cast<double>(w) / static_cast<double>(h);
+    right = glm::normalize(glm::cross(forward, camera.up));
+    up = glm::cross(right, forward);
+    half_h = std::tan(0.5 * camera.vfov_deg * 3.14159265358979323846 / 180.0);
+    half_w = half_h * static_cast<double>(w) / static_cast<double>(h);
     step_x = right * (2.0 * half_w / w);
     step_y = -up * (2.0 * half_h / h);
     base = forward - half_w * right + half_h * up + 0.5 * step_x + 0.5 * step_y;
@@ -35,6 +39,28 @@ struct View {
   Ray ray(int x, int y) const { return Ray(eye, direction(x, y)); }
   // Hits nearer than the near plane (measured along the view axis) are ignored.
   double tmin(const Ray& r) const { return near > 0.0 ? near / glm::dot(r.dir, forward) : 0.0; }
+  // Conservative pixel rectangle covered by the projection of `box` (a margin of one pixel).
+  // Returns false when the box reaches behind the eye plane: then it may cover any pixel.
+  bool project(const Aabb& box, int& x0, int& y0, int& x1, int& y1) const {
+    double xmin = kInfinity, xmax = -kInfinity, ymin = kInfinity, ymax = -kInfinity;
+    for (int k = 0; k < 8; ++k) {
+      const Vec3 d = Vec3(k & 1 ? box.hi.x : box.lo.x, k & 2 ? box.hi.y : box.lo.y, k & 4 ? box.hi.z : box.lo.z) - eye;
+      const double z = glm::dot(d, forward);
+      if (!(z > 1e-9 * (std::abs(d.x) + std::abs(d.y) + std::abs(d.z)))) return false;
+      const double a = glm::dot(d, right) / z, b = glm::dot(d, up) / z;
+      const double x = (a + half_w) * width / (2.0 * half_w) - 0.5;
+      const double y = (half_h - b) * height / (2.0 * half_h) - 0.5;
+      xmin = std::min(xmin, x);
+      xmax = std::max(xmax, x);
+      ymin = std::min(ymin, y);
+      ymax = std::max(ymax, y);
+    }
+    x0 = static_cast<int>(std::max(std::floor(xmin) - 1.0, -1.0));
+    y0 = static_cast<int>(std::max(std::floor(ymin) - 1.0, -1.0));
+    x1 = static_cast<int>(std::min(std::ceil(xmax) + 1.0, double(width)));
+    y1 = static_cast<int>(std::min(std::ceil(ymax) + 1.0, double(height)));
+    return true;
+  }
   size_t pixels() const { return static_cast<size_t>(width) * static_cast<size_t>(height); }
 };
 

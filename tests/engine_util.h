@@ -8,6 +8,8 @@
 #include "src/scene.h"
 #include "src/view.h"
 
+#include <tbb/parallel_for.h>
+
 #include <random>
 #include <string>
 
@@ -25,8 +27,8 @@ inline void brute_reference(const Scene& scene, const View& view, std::vector<ui
                             std::vector<uint8_t>& tie) {
   ids.assign(view.pixels(), kNoPrim);
   tie.assign(view.pixels(), 0);
-  Counters c;
-  for (int y = 0; y < view.height; ++y) {
+  tbb::parallel_for(0, view.height, [&](int y) {
+    Counters c;
     for (int x = 0; x < view.width; ++x) {
       const Ray ray = view.ray(x, y);
       double second = kInfinity;
@@ -37,7 +39,7 @@ inline void brute_reference(const Scene& scene, const View& view, std::vector<ui
         tie[i] = (second - hit.t) <= 1e-6 * std::max(hit.t, 1e-12) ? 1 : 0;
       }
     }
-  }
+  });
 }
 
 inline Comparison compare_ids(const std::vector<uint32_t>& reference, const std::vector<uint8_t>& tie,

@@ -64,6 +64,23 @@ TEST(EngineRandom, TwoHundredScenesMatchBruteForce) {
   EXPECT_LT(double(ties), 1e-4 * double(pixels)) << ties << " tie pixels of " << pixels;
 }
 
+// The three SPD scenes with their own cameras at 129² and 257².
+TEST(EngineSpd, RingsTreeShellsMatchBruteForce) {
+  for (const char* name : {"rings", "tree", "shells"}) {
+    Scene scene;
+    const std::string path = std::string(FRONTIER_DATA_DIR) + "/spd/" + name + ".nff";
+    ASSERT_TRUE(load_scene(path, scene).is_ok()) << path;
+    ASSERT_TRUE(scene.camera.has_value());
+    const KdTree tree = KdTree::build(scene, {});
+    for (int size : {129, 257}) {
+      size_t ties = 0;
+      const View view(*scene.camera, size, size);
+      expect_matches_brute(scene, tree, view, std::string(name) + " " + std::to_string(size), &ties);
+      EXPECT_LT(double(ties), 1e-4 * 2.0 * double(view.pixels())) << name;
+    }
+  }
+}
+
 TEST(EngineHardCases, EyeOnSplitPlanesAndCellCorners) {
   std::mt19937_64 rng(7);
   Scene scene = testing::random_scene(rng, 150);

@@ -1,0 +1,137 @@
+// The job queue under a budget (§5.2) and reconstruction (§5.4): an interrupted frame is
+// complete after reconstruction, a resumed frame equals the full render, and effects the scene
+// does not declare cost nothing (counters prove it).
+#include "tests/engine_util.h"
+
+#include "src/frustum.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace frontier {
+namespace {
+
+Scene lit_scene(bool with_lights, bool specular) {
+  std::mt19937_64 rng(99);
+  Scene scene = testing::random_scene(rng, 150);
+  scene.materials[0].ks = specular ? 0.5 : 0.0;
+  scene.materials[0].shine = 20.0;
+  if (with_lights) {
+    scene.lights.push_back({Vec3(3, -3, 4), Vec3(1.0)});
+    scene.lights.push_back({Vec3(-4, -2, 2), Vec3(1.0)});
+  }
+  return scene;
+}
+
+Camera front_camera() {
+  Camera c;
+  c.eye = Vec3(0.2, -3.5, 0.5);
+  c.look_at = Vec3(0.0);
+  c.up = Vec3(0, 0, 1);
+  c.vfov_deg = 50.0;
+  return c;
+}
+
+TEST(Progressive, InterruptedFrameIsCompleteAndResumesToTheFullRender) {
+  const Scene scene = lit_scene(true, true);
+  const KdTree tree = KdTree::build(scene, {});
+  const View view(front_camera(), 97, 81);
+  const Shader shader(scene, tree);
+
+  SampleBuffer full;
+  RenderOptions options;
+  options.threads = 2;
+  render_frame(scene, tree, view, options, full);
+  ASSERT_EQ(full.confirmed_count(), view.pixels());
+
+  for (uint64_t k : {1ull, 50ull, 500ull, 3000ull}) {
+    SampleBuffer buffer;
+    CellMarks marks;
+    FrustumCaster caster(scene, tree, shader, 2);
+    caster.begin(view, buffer, marks, true, true);
+    Counters counters;
+    FrameBudget budget;
+    budget.samples = k;
+    const bool done = caster.run(budget, counters);
+    EXPECT_FALSE(done) << "a budget of " << k << " samples should interrupt the frame";
+    EXPECT_GE(counters.samples, k);
+    EXPECT_LT(buffer.confirmed_count(), view.pixels());
+    // Reconstruction fills every pixel: mark the image with NaN first and look for leftovers.
+    for (Rgb& c : buffer.image()) c = {NAN, NAN, NAN};
+    reconstruct(buffer, shader.background());
+    size_t unset = 0;
+    for (const Rgb& c : buffer.image()) unset += std::isnan(c.r) ? 1 : 0;
+    EXPECT_EQ(unset, 0u) << "after " << k << " samples";
+    // Resume to completion: the same ids and colours as the uninterrupted render.
+    while (!caster.run(FrameBudget{}, counters)) {
+    }
+    ASSERT_EQ(buffer.confirmed_count(), view.pixels());
+    size_t differ = 0;
+    for (size_t i = 0; i < view.pixels(); ++i) {
+      differ += buffer.prim(i) != full.prim(i) ? 1 : 0;
+      const Rgb a = buffer.color(i), b = full.color(i);
+      differ += std::abs(a.r - b.r) + std::abs(a.g - b.g) + std::abs(a.b - b.b) > 1e-5f ? 1 : 0;
+    }
+    EXPECT_EQ(differ, 0u) << "after resuming from " << k << " samples";
+  }
+}
+
+TEST(Progressive, SampleBudgetLeavesSamplesSpreadOverTheScreen) {
+  const Scene scene = lit_scene(true, false);
+  const KdTree tree = KdTree::build(scene, {});
+  const View view(front_camera(), 129, 129);
+  const Shader shader(scene, tree);
+  SampleBuffer buffer;
+  CellMarks marks;
+  FrustumCaster caster(scene, tree, shader, 2);
+  caster.begin(view, buffer, marks, true, true);
+  Counters counters;
+  FrameBudget budget;
+  budget.samples = view.pixels() / 4;
+  caster.run(budget, counters);
+  // Interleaved order: every quarter of the screen got samples.
+  size_t quarter[4] = {0, 0, 0, 0};
+  for (int y = 0; y < view.height; ++y) {
+    for (int x = 0; x < view.width; ++x) {
+      if (buffer.confirmed(size_t(y) * 129 + size_t(x))) ++quarter[(y >= 64 ? 2 : 0) + (x >= 64 ? 1 : 0)];
+    }
+  }
+  for (size_t q : quarter) EXPECT_GT(q, 0u);
+}
+
+TEST(Effects, NoLightsMeansHeadlightAndNoShadowRays) {
+  const Scene scene = lit_scene(false, false);
+  const KdTree tree = KdTree::build(scene, {});
+  const View view(front_camera(), 65, 65);
+  for (Method m : {Method::RayWalk, Method::Frustum}) {
+    SampleBuffer buffer;
+    RenderOptions options;
+    options.method = m;
+    const Counters c = render_frame(scene, tree, view, options, buffer);
+    EXPECT_EQ(c.shadow_rays, 0u);
+    EXPECT_EQ(c.specular_ops, 0u);
+    EXPECT_GT(c.shading_ops, 0u);
+    EXPECT_TRUE(Effects::declared_by(scene).headlight);
+  }
+}
+
+TEST(Effects, DeclaredLightsCastShadowRaysAndSpecularOnlyWhenAsked) {
+  const Scene lit = lit_scene(true, true);
+  const KdTree tree = KdTree::build(lit, {});
+  const View view(front_camera(), 65, 65);
+  SampleBuffer buffer;
+  RenderOptions options;
+  const Counters c = render_frame(lit, tree, view, options, buffer);
+  EXPECT_GT(c.shadow_rays, 0u);
+  EXPECT_GT(c.specular_ops, 0u);
+  options.shadows = false;
+  const Counters immediate = render_frame(lit, tree, view, options, buffer);
+  EXPECT_EQ(immediate.shadow_rays, 0u) << "shadows are deferred: an immediate-only frame casts none";
+  options.shade = false;
+  const Counters visibility = render_frame(lit, tree, view, options, buffer);
+  EXPECT_EQ(visibility.shading_ops, 0u);
+}
+
+}  // namespace
+}  // namespace frontier
