@@ -260,19 +260,53 @@ void FrustumCaster::resolve_by_walking(const Job& job, Worker& w, bool from_next
       if (buffer_->confirmed(i)) continue;
       const Ray ray = view_.ray(x, y);
       const double tmin = view_.tmin(ray);
-      ++w.counters.rays_walked;
-      RayHit hit;
-      if (job.cell == KdTree::kNone) {
-        hit = cast_ray(scene_, tree_, ray, tmin, w.counters, marks_);
+      int32_t start = job.cell;
+      if (start == KdTree::kNone) {
+        start = tree_.locate(ray.at(tmin), ray.dir);
+        if (start == KdTree::kNone) {
+          double t_enter;
+          int face;
+          start = tree_.enter_root(ray, tmin, t_enter, face);
+        }
       } else if (from_next_cell) {
-        const int32_t next = tree_.arrival(job.cell, ray, tree_.exit(job.cell, ray));
-        if (next != KdTree::kNone) hit = walk_ray(scene_, tree_, ray, tmin, next, w.counters, marks_);
-      } else {
-        hit = walk_ray(scene_, tree_, ray, tmin, job.cell, w.counters, marks_);
+        start = tree_.arrival(job.cell, ray, tree_.exit(job.cell, ray));
       }
+      const RayHit hit = walk_pixel(x, y, ray, tmin, start, w);
       confirm(x, y, hit.prim, hit.t, ray, w);
     }
   }
+}
+
+// Ray walking for one pixel of a frustum (§3.2's 2×2 case). Unlike a lone ray it shares the
+// frame's per-element screen rectangles: an element whose rectangle misses the pixel, or whose
+// bounds lie beyond the best hit so far, is never intersected.
+RayHit FrustumCaster::walk_pixel(int x, int y, const Ray& ray, double tmin, int32_t cell, Worker& w) const {
+  ++w.counters.rays_walked;
+  size_t steps_left = tree_.cells().size() + 16;
+  while (cell != KdTree::kNone && steps_left-- > 0) {
+    ++w.counters.cell_visits;
+    if (marks_->mark(cell)) ++w.counters.cells_touched;
+    const KdTree::Cell& c = tree_.cell(cell);
+    const KdTree::Exit e = tree_.exit(cell, ray);
+    const double tmax = e.t + cell_slack(e.t, slack_scale_);
+    RayHit best;
+    w.counters.primitives_tested += c.count;
+    for (uint32_t r = c.first; r < c.first + c.count; ++r) {
+      const PixelRect rect = screen_rect(r);
+      if (x < rect.x0 || x > rect.x1 || y < rect.y0 || y > rect.y1) continue;
+      if (eye_distance(r) > std::min(best.t, tmax)) continue;
+      const uint32_t prim = tree_.ref(r);
+      double t;
+      ++w.counters.ray_primitive_tests;
+      if (scene_.intersect(prim, ray, tmin, std::min(tmax, best.t), t)) {
+        ++w.counters.hits;
+        if (t < best.t || (t == best.t && prim < best.prim)) best = {prim, t};
+      }
+    }
+    if (best.hit()) return best;
+    cell = tree_.arrival(cell, ray, e);
+  }
+  return {};
 }
 
 // Builds the incidence list of job.cell into w.scratch: references whose clipped bounds are not
@@ -628,8 +662,7 @@ bool FrustumCaster::try_fill(const Job& job, const Incidence* list, uint32_t n, 
       const double te = w.fill_t[static_cast<size_t>(y - job.y0) * nx + static_cast<size_t>(x - job.x0)];
       if (te == kInfinity) {
         // The element misses this ray inside the cell: walk it like a 2×2 ray.
-        ++w.counters.rays_walked;
-        const RayHit hit = walk_ray(scene_, tree_, ray, tmin, job.cell, w.counters, marks_);
+        const RayHit hit = walk_pixel(x, y, ray, tmin, job.cell, w);
         confirm(x, y, hit.prim, hit.t, ray, w);
         continue;
       }

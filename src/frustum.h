@@ -22,6 +22,7 @@
 
 #include "src/counters.h"
 #include "src/kdtree.h"
+#include "src/ray_walk.h"
 #include "src/sample_buffer.h"
 #include "src/scene.h"
 #include "src/shading.h"
@@ -75,6 +76,7 @@ class FrustumCaster {
     bool bounded = true;
   };
   PixelRect screen_rect(uint32_t ref) const;
+  RayHit walk_pixel(int x, int y, const Ray& ray, double tmin, int32_t cell, Worker& w) const;
   double eye_distance(uint32_t ref) const;
   double footprint(const Job& job, const Incidence* list, uint32_t n, Worker& w) const;
   size_t resolve_in_cell(const Job& job, const Incidence* list, uint32_t n, bool have_rects, Worker& w);
