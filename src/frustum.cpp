@@ -52,8 +52,11 @@ struct Pixel {
 }  // namespace
 
 struct FrustumCaster::Incidence {
-  uint32_t ref;      // k-d tree reference (primitive + its bounds clipped to the cell)
-  uint8_t straddle;  // planes (kLeft...) the bounds straddle; others: inside
+  uint32_t ref;            // k-d tree reference (primitive + its bounds clipped to the cell)
+  float distance;          // eye to the bounds, rounded down (a lower bound on any hit)
+  int16_t x0, y0, x1, y1;  // screen rectangle of the bounds (whole view if unbounded)
+  uint8_t straddle;        // planes (kLeft...) the bounds straddle; others: inside
+  bool bounded;            // the rectangle is exact (bounds in front of the eye)
 };
 
 struct FrustumCaster::Worker {
@@ -318,20 +321,18 @@ bool FrustumCaster::collect(const Job& job, Worker& w) {
   for (uint32_t r = cell.first; r < cell.first + cell.count; ++r) {
     const PixelRect rect = screen_rect(r);
     w.counters.plane_tests += 4;
+    Incidence inc{r, std::nextafter(float(eye_distance(r)), 0.0f), int16_t(rect.x0), int16_t(rect.y0),
+                  int16_t(rect.x1), int16_t(rect.y1), 0, rect.bounded};
     if (rect.bounded) {
       if (rect.x1 < job.x0 || rect.x0 > job.x1 || rect.y1 < job.y0 || rect.y0 > job.y1) continue;
-      w.scratch.push_back({r, 0});
+    } else if (!classify_planes(job.x0, job.x1, job.y0, job.y1, tree_.ref_bounds(r), 0xF, inc.straddle)) {
       continue;
     }
-    uint8_t straddle = 0;
-    if (classify_planes(job.x0, job.x1, job.y0, job.y1, tree_.ref_bounds(r), 0xF, straddle)) {
-      w.scratch.push_back({r, straddle});
-    }
+    w.scratch.push_back(inc);
   }
   // Nearest first: later elements can then skip pixels already hit in front of their bounds.
-  std::sort(w.scratch.begin(), w.scratch.end(), [&](const Incidence& a, const Incidence& b) {
-    return eye_distance(a.ref) < eye_distance(b.ref);
-  });
+  std::sort(w.scratch.begin(), w.scratch.end(),
+            [](const Incidence& a, const Incidence& b) { return a.distance < b.distance; });
   return !w.scratch.empty();
 }
 
@@ -495,11 +496,12 @@ double FrustumCaster::footprint(const Job& job, const Incidence* list, uint32_t 
   w.rects.resize(n);
   double area = 0.0;
   for (uint32_t j = 0; j < n; ++j) {
-    PixelRect r = screen_rect(list[j].ref);
-    r.x0 = std::max(r.x0, job.x0);
-    r.y0 = std::max(r.y0, job.y0);
-    r.x1 = std::min(r.x1, job.x1);
-    r.y1 = std::min(r.y1, job.y1);
+    const Incidence& inc = list[j];
+    PixelRect r;
+    r.x0 = std::max<int>(inc.x0, job.x0);
+    r.y0 = std::max<int>(inc.y0, job.y0);
+    r.x1 = std::min<int>(inc.x1, job.x1);
+    r.y1 = std::min<int>(inc.y1, job.y1);
     w.rects[j] = r;
     if (r.x0 <= r.x1 && r.y0 <= r.y1) area += double(r.x1 - r.x0 + 1) * double(r.y1 - r.y0 + 1);
   }
@@ -524,7 +526,7 @@ size_t FrustumCaster::resolve_in_cell(const Job& job, const Incidence* list, uin
   for (uint32_t j = 0; j < n; ++j) {
     const PixelRect& r = w.rects[j];
     const uint32_t prim = tree_.ref(list[j].ref);
-    const double distance = eye_distance(list[j].ref);
+    const double distance = list[j].distance;
     for (int y = r.y0; y <= r.y1; ++y) {
       for (int x = r.x0; x <= r.x1; ++x) {
         const size_t i = size_t(y) * W + size_t(x);
@@ -724,10 +726,9 @@ void FrustumCaster::split(const Job& job, const Incidence* list, uint32_t n, Wor
       const bool new_bottom = r.y0 != job.y0, new_top = r.y1 != job.y1;
       for (uint32_t j = 0; j < n; ++j) {
         const Incidence& inc = list[j];
-        const PixelRect rect = screen_rect(inc.ref);
         ++w.counters.plane_tests;
-        if (rect.bounded) {
-          if (rect.x1 < r.x0 || rect.x0 > r.x1 || rect.y1 < r.y0 || rect.y0 > r.y1) continue;
+        if (inc.bounded) {
+          if (inc.x1 < r.x0 || inc.x0 > r.x1 || inc.y1 < r.y0 || inc.y0 > r.y1) continue;
           w.arena_out.push_back(inc);
           continue;
         }
@@ -742,7 +743,9 @@ void FrustumCaster::split(const Job& job, const Incidence* list, uint32_t n, Wor
         if (new_bottom && !spans_y) planes |= kBottom;
         if (new_top && !spans_y) planes |= kTop;
         if (classify_planes(r.x0, r.x1, r.y0, r.y1, tree_.ref_bounds(inc.ref), planes, s)) {
-          w.arena_out.push_back({inc.ref, s});
+          Incidence kept = inc;
+          kept.straddle = s;
+          w.arena_out.push_back(kept);
         }
       }
       child.inc_count = static_cast<uint32_t>(w.arena_out.size()) - child.inc_begin;
