@@ -321,7 +321,7 @@ bool FrustumCaster::collect(const Job& job, Worker& w) {
   for (uint32_t r = cell.first; r < cell.first + cell.count; ++r) {
     const PixelRect rect = screen_rect(r);
     w.counters.plane_tests += 4;
-    Incidence inc{r, std::nextafter(float(eye_distance(r)), 0.0f), int16_t(rect.x0), int16_t(rect.y0),
+    Incidence inc{r, float(eye_distance(r) * (1.0 - 1e-6)), int16_t(rect.x0), int16_t(rect.y0),
                   int16_t(rect.x1), int16_t(rect.y1), 0, rect.bounded};
     if (rect.bounded) {
       if (rect.x1 < job.x0 || rect.x0 > job.x1 || rect.y1 < job.y0 || rect.y0 > job.y1) continue;
