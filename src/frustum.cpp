@@ -21,6 +21,8 @@ constexpr uint32_t kMaxFillOccluders = 6;
 constexpr double kResolveFactor = 2.0;
 // Frusta up to this many pixels count their open pixels exactly after resolving in a cell.
 constexpr size_t kExactOpenCount = 64;
+// Small frusta (pixels × elements up to this) resolve pixel by pixel with depth early-out.
+constexpr size_t kPixelMajorWork = 4096;
 // Quadrant order of children on the next level: diagonal quadrants first, so that an
 // interrupted level leaves samples spread over the screen (interleaved order, §5.2).
 constexpr std::array<int, 4> kQuadrantOrder = {0, 3, 1, 2};
@@ -57,6 +59,11 @@ struct FrustumCaster::Incidence {
   int16_t x0, y0, x1, y1;  // screen rectangle of the bounds (whole view if unbounded)
   uint8_t straddle;        // planes (kLeft...) the bounds straddle; others: inside
   bool bounded;            // the rectangle is exact (bounds in front of the eye)
+};
+
+struct FrustumCaster::CellCache {
+  std::atomic<uint32_t> stamp{0};  // frame whose entries these are
+  std::vector<Incidence> entries;
 };
 
 struct FrustumCaster::Worker {
@@ -108,12 +115,9 @@ void FrustumCaster::begin(const View& view, SampleBuffer& buffer, CellMarks& mar
   marks.begin_frame();
   samples_done_ = 0;
   ++frame_;
-  if (ref_rect_count_ != tree_.reference_count()) {
-    ref_rect_count_ = tree_.reference_count();
-    ref_rect_ = std::make_unique<std::atomic<uint64_t>[]>(ref_rect_count_);
-    ref_rect_stamp_ = std::make_unique<std::atomic<uint32_t>[]>(ref_rect_count_);
-    ref_distance_ = std::make_unique<std::atomic<double>[]>(ref_rect_count_);
-    for (size_t i = 0; i < ref_rect_count_; ++i) ref_rect_stamp_[i].store(0, std::memory_order_relaxed);
+  if (cell_cache_count_ != tree_.cells().size()) {
+    cell_cache_count_ = tree_.cells().size();
+    cell_cache_ = std::make_unique<CellCache[]>(cell_cache_count_);
   }
   // One plane per pixel column and row, through the eye (§3.1: children reuse them).
   column_normal_.resize(static_cast<size_t>(view.width));
@@ -289,16 +293,15 @@ RayHit FrustumCaster::walk_pixel(int x, int y, const Ray& ray, double tmin, int3
   while (cell != KdTree::kNone && steps_left-- > 0) {
     ++w.counters.cell_visits;
     if (marks_->mark(cell)) ++w.counters.cells_touched;
-    const KdTree::Cell& c = tree_.cell(cell);
     const KdTree::Exit e = tree_.exit(cell, ray);
     const double tmax = e.t + cell_slack(e.t, slack_scale_);
     RayHit best;
-    w.counters.primitives_tested += c.count;
-    for (uint32_t r = c.first; r < c.first + c.count; ++r) {
-      const PixelRect rect = screen_rect(r);
-      if (x < rect.x0 || x > rect.x1 || y < rect.y0 || y > rect.y1) continue;
-      if (eye_distance(r) > std::min(best.t, tmax)) continue;
-      const uint32_t prim = tree_.ref(r);
+    const std::vector<Incidence>& entries = cell_entries(cell);
+    w.counters.primitives_tested += entries.size();
+    for (const Incidence& inc : entries) {
+      if (inc.distance > std::min(best.t, tmax)) break;  // sorted: the rest lie farther
+      if (x < inc.x0 || x > inc.x1 || y < inc.y0 || y > inc.y1) continue;
+      const uint32_t prim = tree_.ref(inc.ref);
       double t;
       ++w.counters.ray_primitive_tests;
       if (scene_.intersect(prim, ray, tmin, std::min(tmax, best.t), t)) {
@@ -316,23 +319,20 @@ RayHit FrustumCaster::walk_pixel(int x, int y, const Ray& ray, double tmin, int3
 // outside any frustum plane. Returns false when the list is empty.
 bool FrustumCaster::collect(const Job& job, Worker& w) {
   w.scratch.clear();
-  const KdTree::Cell& cell = tree_.cell(job.cell);
-  w.counters.primitives_tested += cell.count;
-  for (uint32_t r = cell.first; r < cell.first + cell.count; ++r) {
-    const PixelRect rect = screen_rect(r);
-    w.counters.plane_tests += 4;
-    Incidence inc{r, float(eye_distance(r) * (1.0 - 1e-6)), int16_t(rect.x0), int16_t(rect.y0),
-                  int16_t(rect.x1), int16_t(rect.y1), 0, rect.bounded};
-    if (rect.bounded) {
-      if (rect.x1 < job.x0 || rect.x0 > job.x1 || rect.y1 < job.y0 || rect.y0 > job.y1) continue;
-    } else if (!classify_planes(job.x0, job.x1, job.y0, job.y1, tree_.ref_bounds(r), 0xF, inc.straddle)) {
+  const std::vector<Incidence>& entries = cell_entries(job.cell);
+  w.counters.primitives_tested += entries.size();
+  for (const Incidence& e : entries) {
+    ++w.counters.plane_tests;
+    if (e.bounded) {
+      if (e.x1 < job.x0 || e.x0 > job.x1 || e.y1 < job.y0 || e.y0 > job.y1) continue;
+      w.scratch.push_back(e);
       continue;
     }
-    w.scratch.push_back(inc);
+    Incidence inc = e;
+    if (classify_planes(job.x0, job.x1, job.y0, job.y1, tree_.ref_bounds(e.ref), 0xF, inc.straddle)) {
+      w.scratch.push_back(inc);
+    }
   }
-  // Nearest first: later elements can then skip pixels already hit in front of their bounds.
-  std::sort(w.scratch.begin(), w.scratch.end(),
-            [](const Incidence& a, const Incidence& b) { return a.distance < b.distance; });
   return !w.scratch.empty();
 }
 
@@ -458,38 +458,32 @@ void FrustumCaster::process(Job job, Worker& w) {
   (void)W;
 }
 
-// Screen rectangle of a reference's bounds, computed once per frame and shared by all threads
-// (written atomically: two threads computing the same rectangle store the same bits). For
-// bounds in front of the eye, testing the rectangle against a frustum's pixel rectangle is the
-// ternary classification against its four planes (every pixel column and row is one plane
-// through the eye), done once per frame instead of once per frustum.
-FrustumCaster::PixelRect FrustumCaster::screen_rect(uint32_t ref) const {
-  constexpr uint64_t kUnbounded = 0xFFFF;
-  if (ref_rect_stamp_[ref].load(std::memory_order_acquire) != frame_) {
-    const Aabb& box = tree_.ref_bounds(ref);
-    PixelRect r;
-    uint64_t bits;
-    if (!in_front(box)) {
-      bits = 2 | (1ull << 32);  // empty: x0 = 1 > x1 = 0
-    } else if (view_.project(box, r.x0, r.y0, r.x1, r.y1)) {
-      bits = uint64_t(uint16_t(r.x0 + 1)) | (uint64_t(uint16_t(r.y0 + 1)) << 16) |
-             (uint64_t(uint16_t(r.x1 + 1)) << 32) | (uint64_t(uint16_t(r.y1 + 1)) << 48);
-    } else {
-      bits = kUnbounded;
-    }
-    ref_rect_[ref].store(bits, std::memory_order_relaxed);
-    ref_distance_[ref].store(distance_to_box(view_.eye, box), std::memory_order_relaxed);
-    ref_rect_stamp_[ref].store(frame_, std::memory_order_release);
+// The references of a cell with their screen rectangles and eye distances, sorted nearest
+// first, built once per frame by the first thread that needs them (the others wait on a
+// striped lock or read the finished list). For bounds in front of the eye, testing the
+// rectangle against a frustum's pixel rectangle is the ternary classification against its
+// four planes (every pixel column and row is one plane through the eye), done once per frame
+// instead of once per frustum. Bounds wholly behind the near plane are left out.
+const std::vector<FrustumCaster::Incidence>& FrustumCaster::cell_entries(int32_t cell) const {
+  CellCache& cache = cell_cache_[size_t(cell)];
+  if (cache.stamp.load(std::memory_order_acquire) == frame_) return cache.entries;
+  std::lock_guard<std::mutex> lock(cell_locks_[size_t(cell) % cell_locks_.size()]);
+  if (cache.stamp.load(std::memory_order_relaxed) == frame_) return cache.entries;
+  cache.entries.clear();
+  const KdTree::Cell& c = tree_.cell(cell);
+  for (uint32_t r = c.first; r < c.first + c.count; ++r) {
+    const Aabb& box = tree_.ref_bounds(r);
+    if (!in_front(box)) continue;
+    PixelRect rect;
+    const bool bounded = view_.project(box, rect.x0, rect.y0, rect.x1, rect.y1);
+    if (!bounded) rect = {0, 0, view_.width - 1, view_.height - 1};
+    cache.entries.push_back({r, float(distance_to_box(view_.eye, box) * (1.0 - 1e-6)), int16_t(rect.x0),
+                             int16_t(rect.y0), int16_t(rect.x1), int16_t(rect.y1), 0, bounded});
   }
-  const uint64_t bits = ref_rect_[ref].load(std::memory_order_relaxed);
-  if ((bits & 0xFFFF) == kUnbounded) return {0, 0, view_.width - 1, view_.height - 1, false};
-  return {int(bits & 0xFFFF) - 1, int((bits >> 16) & 0xFFFF) - 1, int((bits >> 32) & 0xFFFF) - 1,
-          int((bits >> 48) & 0xFFFF) - 1, true};
-}
-
-double FrustumCaster::eye_distance(uint32_t ref) const {
-  screen_rect(ref);
-  return ref_distance_[ref].load(std::memory_order_relaxed);
+  std::sort(cache.entries.begin(), cache.entries.end(),
+            [](const Incidence& a, const Incidence& b) { return a.distance < b.distance; });
+  cache.stamp.store(frame_, std::memory_order_release);
+  return cache.entries;
 }
 
 double FrustumCaster::footprint(const Job& job, const Incidence* list, uint32_t n, Worker& w) const {
@@ -515,6 +509,8 @@ double FrustumCaster::footprint(const Job& job, const Incidence* list, uint32_t 
 // (checked exactly only for small frusta; large ones report themselves as open).
 size_t FrustumCaster::resolve_in_cell(const Job& job, const Incidence* list, uint32_t n, bool have_rects,
                                       Worker& w) {
+  const size_t npix = size_t(job.x1 - job.x0 + 1) * size_t(job.y1 - job.y0 + 1);
+  if (npix * n <= kPixelMajorWork) return resolve_pixel_major(job, list, n, w);
   if (!have_rects) footprint(job, list, n, w);
   const size_t W = size_t(view_.width);
   if (++w.stamp == 0) {
@@ -565,11 +561,52 @@ size_t FrustumCaster::resolve_in_cell(const Job& job, const Incidence* list, uin
   for (const Pixel& p : w.open) {
     if (p.hit.hit()) confirm(p.x, p.y, p.hit.prim, p.hit.t, p.ray, w);
   }
-  const size_t npix = size_t(job.x1 - job.x0 + 1) * size_t(job.y1 - job.y0 + 1);
   if (npix > kExactOpenCount) return npix;
   size_t remaining = 0;
   for (int y = job.y0; y <= job.y1; ++y) {
     for (int x = job.x0; x <= job.x1; ++x) remaining += buffer_->confirmed(size_t(y) * W + size_t(x)) ? 0 : 1;
+  }
+  return remaining;
+}
+
+// The same for small frusta, pixel by pixel: the list is sorted nearest first, so a pixel stops
+// at the first element whose bounds lie beyond its best hit (early termination in depth).
+size_t FrustumCaster::resolve_pixel_major(const Job& job, const Incidence* list, uint32_t n, Worker& w) {
+  const size_t W = size_t(view_.width);
+  size_t remaining = 0;
+  for (int y = job.y0; y <= job.y1; ++y) {
+    for (int x = job.x0; x <= job.x1; ++x) {
+      const size_t i = size_t(y) * W + size_t(x);
+      if (buffer_->confirmed(i)) continue;
+      Ray ray;
+      double tmin = 0.0, tmax = 0.0;
+      bool have_ray = false;
+      RayHit best;
+      for (uint32_t j = 0; j < n; ++j) {
+        const Incidence& e = list[j];
+        if (e.distance > best.t) break;
+        if (x < e.x0 || x > e.x1 || y < e.y0 || y > e.y1) continue;
+        if (!have_ray) {
+          ray = view_.ray(x, y);
+          tmin = view_.tmin(ray);
+          const KdTree::Exit exit = tree_.exit(job.cell, ray);
+          tmax = exit.t + cell_slack(exit.t, slack_scale_);
+          have_ray = true;
+        }
+        const uint32_t prim = tree_.ref(e.ref);
+        double t;
+        ++w.counters.ray_primitive_tests;
+        if (scene_.intersect(prim, ray, tmin, std::min(tmax, best.t), t)) {
+          ++w.counters.hits;
+          if (t < best.t || (t == best.t && prim < best.prim)) best = {prim, t};
+        }
+      }
+      if (best.hit()) {
+        confirm(x, y, best.prim, best.t, ray, w);
+      } else {
+        ++remaining;
+      }
+    }
   }
   return remaining;
 }

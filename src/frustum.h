@@ -32,6 +32,7 @@
 #include <atomic>
 #include <chrono>
 #include <memory>
+#include <mutex>
 #include <vector>
 
 namespace frontier {
@@ -75,10 +76,11 @@ class FrustumCaster {
     int x0, y0, x1, y1;
     bool bounded = true;
   };
-  PixelRect screen_rect(uint32_t ref) const;
+  struct CellCache;
+  const std::vector<Incidence>& cell_entries(int32_t cell) const;
   RayHit walk_pixel(int x, int y, const Ray& ray, double tmin, int32_t cell, Worker& w) const;
-  double eye_distance(uint32_t ref) const;
   double footprint(const Job& job, const Incidence* list, uint32_t n, Worker& w) const;
+  size_t resolve_pixel_major(const Job& job, const Incidence* list, uint32_t n, Worker& w);
   size_t resolve_in_cell(const Job& job, const Incidence* list, uint32_t n, bool have_rects, Worker& w);
   bool corners_and_fill(const Job& job, const Incidence* list, uint32_t n, const std::array<Ray, 4>& rays,
                         const std::array<double, 4>& tmins, Worker& w);
@@ -101,12 +103,11 @@ class FrustumCaster {
   std::vector<Vec3> column_normal_;  // plane of pixel column x, oriented towards larger x
   std::vector<Vec3> row_normal_;     // plane of pixel row y, oriented towards larger y
 
-  // Per-reference screen rectangles of this frame (lazily filled, see screen_rect).
+  // Per-cell incidence prototypes of this frame (see cell_entries).
   uint32_t frame_ = 0;
-  size_t ref_rect_count_ = 0;
-  std::unique_ptr<std::atomic<uint64_t>[]> ref_rect_;
-  std::unique_ptr<std::atomic<uint32_t>[]> ref_rect_stamp_;
-  std::unique_ptr<std::atomic<double>[]> ref_distance_;  // eye to clipped bounds
+  size_t cell_cache_count_ = 0;
+  std::unique_ptr<CellCache[]> cell_cache_;
+  mutable std::array<std::mutex, 64> cell_locks_;
 
   std::vector<Job> current_;                      // jobs of the current level not yet run
   std::vector<std::vector<Incidence>> arenas_in_;  // incidence lists the current level reads

@@ -80,8 +80,13 @@ class KdBuilder {
     const int bins = std::max(options_.bins, 2);
     const double area = box.surface_area();
     std::vector<uint32_t> starts(bins), ends(bins);
+    // Bin over the extent the items actually occupy (clustered items would otherwise share
+    // one bin of the node's extent and never separate).
+    Aabb occupied;
+    for (const Item& it : items) occupied.extend(it.box);
     for (int axis = 0; axis < 3; ++axis) {
-      const double lo = box.lo[axis], hi = box.hi[axis];
+      const double lo = std::max(box.lo[axis], occupied.lo[axis]);
+      const double hi = std::min(box.hi[axis], occupied.hi[axis]);
       const double width = (hi - lo) / bins;
       if (!(width > 0.0)) continue;
       std::fill(starts.begin(), starts.end(), 0);
@@ -92,12 +97,24 @@ class KdBuilder {
         ++starts[s];
         ++ends[e];
       }
+      // Cutting off the empty space beside the occupied extent.
+      for (const double pos : {lo, hi}) {
+        if (!(pos > box.lo[axis] && pos < box.hi[axis])) continue;
+        Aabb lbox = box, rbox = box;
+        lbox.hi[axis] = pos;
+        rbox.lo[axis] = pos;
+        const double n = static_cast<double>(items.size());
+        const double cost = (options_.traversal_cost +
+                             options_.intersection_cost * (pos == lo ? rbox : lbox).surface_area() / area * n) *
+                            (1.0 - options_.empty_bonus);
+        if (cost < best.cost) best = {axis, pos, cost, pos == lo ? 0 : items.size(), pos == lo ? items.size() : 0};
+      }
       size_t left = 0, right = items.size();
       for (int k = 1; k < bins; ++k) {
         left += starts[k - 1];
         right -= ends[k - 1];
         const double pos = lo + k * width;
-        if (!(pos > lo && pos < hi)) continue;
+        if (!(pos > box.lo[axis] && pos < box.hi[axis])) continue;
         Aabb lbox = box, rbox = box;
         lbox.hi[axis] = pos;
         rbox.lo[axis] = pos;

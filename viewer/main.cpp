@@ -37,7 +37,7 @@ int main(int argc, char** argv) {
   std::string scene_path, size_text, method_text = "frustum", png_path, ids_path, stats_path;
   bool headless = false, no_shadows = false;
   int threads = 0;
-  uint32_t cell_prims = 8;
+  uint32_t cell_prims = 8, min_cell_prims = 0;
   double frame_ms = 0.0;
   uint64_t samples = 0;
   app.add_option("SCENE", scene_path, "model file (.nff, .ply, .obj, .off)")->required();
@@ -53,6 +53,8 @@ int main(int argc, char** argv) {
   app.add_option("--threads", threads, "worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
   app.add_option("--cell-prims", cell_prims, "largest cell the k-d tree keeps when it could split")
       ->check(CLI::Range(1u, 1000000u));
+  app.add_option("--min-cell-prims", min_cell_prims, "cells at or below this size never split (coarser cells)")
+      ->check(CLI::Range(0u, 1000000u));
   app.add_flag("--no-shadows", no_shadows, "skip the deferred shadow effect");
   auto* peg_time = app.add_option("--frame-ms", frame_ms, "frustum: peg frame time (stop after MS milliseconds)")
                        ->check(CLI::PositiveNumber);
@@ -77,6 +79,7 @@ int main(int argc, char** argv) {
   const auto t1 = std::chrono::steady_clock::now();
   KdBuildOptions build;
   build.max_cell_prims = cell_prims;
+  build.min_cell_prims = min_cell_prims;
   const KdTree tree = KdTree::build(scene, build);
   const auto t2 = std::chrono::steady_clock::now();
 
