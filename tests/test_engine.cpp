@@ -139,6 +139,28 @@ TEST(EngineHardCases, WideFieldOfViewAndOneMeshPerCell) {
   expect_matches_brute(scene, tree, View(camera_at(Vec3(0.0, -3.0, 0.0), Vec3(0.0), 170.0), 49, 49), "170 fov out");
 }
 
+// Cameras whose centre ray grazes a sphere and a cone (tangent to the surface).
+TEST(EngineHardCases, GrazingRaysOnSpheresAndCones) {
+  Scene scene;
+  scene.materials.push_back({});
+  scene.add_sphere({Vec3(0.0), 1.0}, 0, 0);
+  scene.add_cone({Vec3(3.0, 0.0, -1.0), 0.8, Vec3(3.0, 0.0, 1.0), 0.3}, 1, 0);
+  scene.add_sphere({Vec3(1.2, 0.3, 0.2), 0.25}, 2, 0);
+  scene.input_primitives = 3;
+  const KdTree tree = KdTree::build(scene, {});
+  // Tangent to the unit sphere at (0, 0, 1): the centre pixel's ray touches the top.
+  for (double dz : {0.0, 1e-9, -1e-9, 1e-6}) {
+    const Vec3 eye(-4.0, 0.0, 1.0 + dz);
+    expect_matches_brute(scene, tree, View(camera_at(eye, eye + Vec3(1, 0, 0), 20.0), 65, 65), "sphere tangent");
+  }
+  // Along the slant of the cone: eye on the line through its surface.
+  const Vec3 base(3.0, -0.8, -1.0), apex(3.0, -0.3, 1.0);
+  const Vec3 eye = base - 2.0 * (apex - base);
+  expect_matches_brute(scene, tree, View(camera_at(eye, apex, 30.0), 65, 65), "cone slant");
+  expect_matches_brute(scene, tree, View(camera_at(Vec3(3.0, -0.55, -6.0), Vec3(3.0, -0.55, 0.0), 30.0), 65, 65),
+                       "cone axis-parallel graze");
+}
+
 TEST(EngineHardCases, FarFromOriginRendersTheSameIds) {
   std::mt19937_64 rng(17);
   Scene scene = testing::random_scene(rng, 120);
