@@ -11,6 +11,10 @@ namespace frontier {
 
 namespace {
 
+// Empty space cut off by a split earns the SAH bonus only if it is at least this fraction of
+// the node's extent on that axis.
+constexpr double kMinEmptyFraction = 0.05;
+
 struct Item {
   uint32_t prim;
   Aabb box;  // clipped to the current node
@@ -100,6 +104,9 @@ class KdBuilder {
       // Cutting off the empty space beside the occupied extent.
       for (const double pos : {lo, hi}) {
         if (!(pos > box.lo[axis] && pos < box.hi[axis])) continue;
+        // Only a real slab of empty space is worth a level (not the padding's sliver).
+        const double cut = pos == lo ? pos - box.lo[axis] : box.hi[axis] - pos;
+        if (cut < kMinEmptyFraction * (box.hi[axis] - box.lo[axis])) continue;
         Aabb lbox = box, rbox = box;
         lbox.hi[axis] = pos;
         rbox.lo[axis] = pos;
@@ -122,7 +129,10 @@ class KdBuilder {
                       options_.intersection_cost *
                           (lbox.surface_area() / area * static_cast<double>(left) +
                            rbox.surface_area() / area * static_cast<double>(right));
-        if (left == 0 || right == 0) cost *= 1.0 - options_.empty_bonus;
+        if ((left == 0 && pos - box.lo[axis] >= kMinEmptyFraction * (box.hi[axis] - box.lo[axis])) ||
+            (right == 0 && box.hi[axis] - pos >= kMinEmptyFraction * (box.hi[axis] - box.lo[axis]))) {
+          cost *= 1.0 - options_.empty_bonus;
+        }
         if (cost < best.cost) best = {axis, pos, cost, left, right};
       }
     }
