@@ -1,5 +1,5 @@
 // Status formatting.
-#include "src/status.h"
+#include "store/status.h"
 
 namespace frontier {
 
