@@ -157,11 +157,11 @@ void FrustumCaster::begin(const View& view, SampleBuffer& buffer, CellMarks& mar
   // instead of waiting for one root frustum to fan out.
   current_.push_back(root);
   for (int level = 0; level < kPresplitLevels; ++level) {
-    std::vector<Job> next;
+    std::array<std::vector<Job>, 4> buckets;  // by quadrant, for the interleaved order
     for (const Job& job : current_) {
       const bool split_x = job.x1 - job.x0 >= 2, split_y = job.y1 - job.y0 >= 2;
       if (!split_x && !split_y) {
-        next.push_back(job);
+        buckets[0].push_back(job);
         continue;
       }
       const int xm = split_x ? (job.x0 + job.x1) / 2 : job.x1, ym = split_y ? (job.y0 + job.y1) / 2 : job.y1;
@@ -173,10 +173,11 @@ void FrustumCaster::begin(const View& view, SampleBuffer& buffer, CellMarks& mar
         child.x1 = right || !split_x ? job.x1 : xm;
         child.y0 = lower ? ym : job.y0;
         child.y1 = lower || !split_y ? job.y1 : ym;
-        next.push_back(child);
+        buckets[size_t(q)].push_back(child);
       }
     }
-    current_.swap(next);
+    current_.clear();
+    for (int q : kQuadrantOrder) current_.insert(current_.end(), buckets[size_t(q)].begin(), buckets[size_t(q)].end());
   }
 }
 
