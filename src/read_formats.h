@@ -16,6 +16,34 @@ namespace frontier {
 // turn into a huge allocation.
 inline constexpr int64_t kMaxPolygonVertices = int64_t{1} << 16;
 
+// Base of the format readers: owns the header, keeps the first error and returns it from
+// every later next() call (the SceneReader contract), so a reader only writes read_next().
+class FormatReader : public SceneReader {
+ public:
+  Status next(InputPrimitive& out, bool& end) final {
+    end = false;
+    if (!status_.is_ok()) return status_;
+    status_ = read_next(out, end);
+    return status_;
+  }
+  const SceneHeader& header() const final { return header_; }
+
+ protected:
+  virtual Status read_next(InputPrimitive& out, bool& end) = 0;
+  SceneHeader header_;
+
+ private:
+  Status status_;
+};
+
+// Constructs a reader and opens `path` with its `Status open(const std::string&)`.
+template <class Reader>
+Result<std::unique_ptr<SceneReader>> open_format_reader(const std::string& path) {
+  auto reader = std::make_unique<Reader>();
+  if (Status s = reader->open(path); !s) return s;
+  return std::unique_ptr<SceneReader>(std::move(reader));
+}
+
 Result<std::unique_ptr<SceneReader>> open_nff_reader(const std::string& path);
 Result<std::unique_ptr<SceneReader>> open_ply_reader(const std::string& path);
 Result<std::unique_ptr<SceneReader>> open_obj_reader(const std::string& path);

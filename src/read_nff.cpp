@@ -15,22 +15,15 @@
 namespace frontier {
 namespace {
 
-class NffReader final : public SceneReader {
+class NffReader final : public FormatReader {
  public:
   Status open(const std::string& path) { return tok_.open(path, {.hash_comments = true}); }
 
-  Status next(InputPrimitive& out, bool& end) override {
-    end = false;
-    if (!status_.is_ok()) return status_;
-    status_ = read_next(out, end);
-    return status_;
-  }
-  const SceneHeader& header() const override { return header_; }
   uint64_t bytes_read() const override { return tok_.offset(); }
   uint64_t bytes_total() const override { return tok_.size(); }
 
  private:
-  Status read_next(InputPrimitive& out, bool& end);
+  Status read_next(InputPrimitive& out, bool& end) override;
   Status read_sphere(InputPrimitive& out);
   Status read_cone(InputPrimitive& out);
   Status read_polygon(InputPrimitive& out, bool with_normals);
@@ -49,8 +42,6 @@ class NffReader final : public SceneReader {
   }
 
   TextTokenizer tok_;
-  SceneHeader header_;
-  Status status_;
 };
 
 Status NffReader::read_next(InputPrimitive& out, bool& end) {
@@ -178,10 +169,7 @@ Status NffReader::read_material() {
 }  // namespace
 
 Result<std::unique_ptr<SceneReader>> open_nff_reader(const std::string& path) {
-  auto reader = std::make_unique<NffReader>();
-  Status s = reader->open(path);
-  if (!s) return s;
-  return std::unique_ptr<SceneReader>(std::move(reader));
+  return open_format_reader<NffReader>(path);
 }
 
 }  // namespace frontier

@@ -42,30 +42,21 @@ bool resolve_index(int64_t index, size_t count, size_t& out) {
   return false;
 }
 
-class ObjReader final : public SceneReader {
+class ObjReader final : public FormatReader {
  public:
   Status open(const std::string& path) {
     header_.materials.emplace_back();
     return tok_.open(path, {.hash_comments = true, .line_continuation = true});
   }
 
-  Status next(InputPrimitive& out, bool& end) override {
-    end = false;
-    if (!status_.is_ok()) return status_;
-    status_ = read_next(out, end);
-    return status_;
-  }
-  const SceneHeader& header() const override { return header_; }
   uint64_t bytes_read() const override { return tok_.offset(); }
   uint64_t bytes_total() const override { return tok_.size(); }
 
  private:
-  Status read_next(InputPrimitive& out, bool& end);
+  Status read_next(InputPrimitive& out, bool& end) override;
   Status read_face(InputPrimitive& out);
 
   TextTokenizer tok_;
-  SceneHeader header_;
-  Status status_;
   std::vector<Vec3> positions_;
   std::vector<Vec3> normals_;
   size_t texcoords_ = 0;
@@ -158,10 +149,7 @@ Status ObjReader::read_face(InputPrimitive& out) {
 }  // namespace
 
 Result<std::unique_ptr<SceneReader>> open_obj_reader(const std::string& path) {
-  auto reader = std::make_unique<ObjReader>();
-  Status s = reader->open(path);
-  if (!s) return s;
-  return std::unique_ptr<SceneReader>(std::move(reader));
+  return open_format_reader<ObjReader>(path);
 }
 
 }  // namespace frontier

@@ -12,17 +12,10 @@
 namespace frontier {
 namespace {
 
-class OffReader final : public SceneReader {
+class OffReader final : public FormatReader {
  public:
   Status open(const std::string& path);
 
-  Status next(InputPrimitive& out, bool& end) override {
-    end = false;
-    if (!status_.is_ok()) return status_;
-    status_ = read_next(out, end);
-    return status_;
-  }
-  const SceneHeader& header() const override { return header_; }
   int64_t declared_primitives() const override { return face_count_; }
   uint64_t bytes_read() const override {
     return vertices_read_ && faces_read_ == face_count_ ? tok_.size() : tok_.offset();
@@ -31,11 +24,9 @@ class OffReader final : public SceneReader {
 
  private:
   Status read_vertices();
-  Status read_next(InputPrimitive& out, bool& end);
+  Status read_next(InputPrimitive& out, bool& end) override;
 
   TextTokenizer tok_;
-  SceneHeader header_;
-  Status status_;
   bool has_normals_ = false;
   int64_t vertex_count_ = 0;
   int64_t face_count_ = 0;
@@ -142,10 +133,7 @@ Status OffReader::read_next(InputPrimitive& out, bool& end) {
 }  // namespace
 
 Result<std::unique_ptr<SceneReader>> open_off_reader(const std::string& path) {
-  auto reader = std::make_unique<OffReader>();
-  Status s = reader->open(path);
-  if (!s) return s;
-  return std::unique_ptr<SceneReader>(std::move(reader));
+  return open_format_reader<OffReader>(path);
 }
 
 }  // namespace frontier

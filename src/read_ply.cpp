@@ -258,7 +258,7 @@ class BinaryStream {
   Status status_;
 };
 
-class PlyReader final : public SceneReader {
+class PlyReader final : public FormatReader {
  public:
   ~PlyReader() override {
     if (map_ != nullptr) ::munmap(map_, map_size_);
@@ -266,13 +266,6 @@ class PlyReader final : public SceneReader {
 
   Status open(const std::string& path);
 
-  Status next(InputPrimitive& out, bool& end) override {
-    end = false;
-    if (!status_.is_ok()) return status_;
-    status_ = read_next(out, end);
-    return status_;
-  }
-  const SceneHeader& header() const override { return header_; }
   int64_t declared_primitives() const override { return declared_; }
   uint64_t bytes_read() const override {
     if (element_ >= elements_.size()) return tok_.size();  // trailing bytes are not data
@@ -283,7 +276,7 @@ class PlyReader final : public SceneReader {
  private:
   Status parse_header();
   Status check_header();
-  Status read_next(InputPrimitive& out, bool& end);
+  Status read_next(InputPrimitive& out, bool& end) override;
   Status load_vertices(const PlyElement& e);
   Status map_vertices(const PlyElement& e);
   Status skip_element(const PlyElement& e);
@@ -304,8 +297,6 @@ class PlyReader final : public SceneReader {
   std::string path_;
   TextTokenizer tok_;  // header, and the body of ascii files
   BinaryStream stream_;
-  SceneHeader header_;
-  Status status_;
   bool ascii_ = true;
   bool swap_ = false;  // binary byte order differs from the host's
   std::vector<PlyElement> elements_;
@@ -865,10 +856,7 @@ Status PlyReader::skip_binary_record_property(const PlyProperty& p) {
 }  // namespace
 
 Result<std::unique_ptr<SceneReader>> open_ply_reader(const std::string& path) {
-  auto reader = std::make_unique<PlyReader>();
-  Status s = reader->open(path);
-  if (!s) return s;
-  return std::unique_ptr<SceneReader>(std::move(reader));
+  return open_format_reader<PlyReader>(path);
 }
 
 }  // namespace frontier
