@@ -331,12 +331,7 @@ RayHit FrustumCaster::walk_pixel(int x, int y, const Ray& ray, double tmin, int3
       if (inc.distance > std::min(best.t, tmax)) break;  // sorted: the rest lie farther
       if (x < inc.x0 || x > inc.x1 || y < inc.y0 || y > inc.y1) continue;
       const uint32_t prim = tree_.ref(inc.ref);
-      double t;
-      ++w.counters.ray_primitive_tests;
-      if (scene_.intersect(prim, ray, tmin, std::min(tmax, best.t), t)) {
-        ++w.counters.hits;
-        if (t < best.t || (t == best.t && prim < best.prim)) best = {prim, t};
-      }
+      offer_primitive(scene_, prim, ray, tmin, tmax, best, w.counters);
     }
     if (best.hit()) return best;
     cell = tree_.arrival(cell, ray, e);
@@ -578,12 +573,7 @@ size_t FrustumCaster::resolve_in_cell(const Job& job, const Incidence* list, uin
         }
         Pixel& p = w.open[slot];
         if (p.hit.t < distance) continue;  // already hit in front of these bounds
-        double t;
-        ++w.counters.ray_primitive_tests;
-        if (scene_.intersect(prim, p.ray, p.tmin, std::min(p.tmax, p.hit.t), t)) {
-          ++w.counters.hits;
-          if (t < p.hit.t || (t == p.hit.t && prim < p.hit.prim)) p.hit = {prim, t};
-        }
+        offer_primitive(scene_, prim, p.ray, p.tmin, p.tmax, p.hit, w.counters);
       }
     }
   }
@@ -623,12 +613,7 @@ size_t FrustumCaster::resolve_pixel_major(const Job& job, const Incidence* list,
           have_ray = true;
         }
         const uint32_t prim = tree_.ref(e.ref);
-        double t;
-        ++w.counters.ray_primitive_tests;
-        if (scene_.intersect(prim, ray, tmin, std::min(tmax, best.t), t)) {
-          ++w.counters.hits;
-          if (t < best.t || (t == best.t && prim < best.prim)) best = {prim, t};
-        }
+        offer_primitive(scene_, prim, ray, tmin, tmax, best, w.counters);
       }
       if (best.hit()) {
         confirm(x, y, best.prim, best.t, ray, w);
@@ -657,12 +642,7 @@ bool FrustumCaster::corners_and_fill(const Job& job, const Incidence* list, uint
     RayHit best;
     for (uint32_t j = 0; j < n; ++j) {
       const uint32_t prim = tree_.ref(list[j].ref);
-      double t;
-      ++w.counters.ray_primitive_tests;
-      if (scene_.intersect(prim, rays[k], tmins[k], std::min(tmax, best.t), t)) {
-        ++w.counters.hits;
-        if (t < best.t || (t == best.t && prim < best.prim)) best = {prim, t};
-      }
+      offer_primitive(scene_, prim, rays[k], tmins[k], tmax, best, w.counters);
     }
     hits[k] = best;
     if (best.hit() && !buffer_->confirmed(i)) confirm(x, y, best.prim, best.t, rays[k], w);
@@ -736,12 +716,7 @@ bool FrustumCaster::try_fill(const Job& job, const Incidence* list, uint32_t n, 
       }
       RayHit best{element, te};
       for (uint32_t prim : w.occluders) {
-        double t;
-        ++w.counters.ray_primitive_tests;
-        if (scene_.intersect(prim, ray, tmin, best.t, t)) {
-          ++w.counters.hits;
-          if (t < best.t || (t == best.t && prim < best.prim)) best = {prim, t};
-        }
+        offer_primitive(scene_, prim, ray, tmin, kInfinity, best, w.counters);
       }
       confirm(x, y, best.prim, best.t, ray, w);
     }

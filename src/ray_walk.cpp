@@ -28,12 +28,7 @@ RayHit nearest_in_refs(const Scene& scene, const KdTree& tree, uint32_t first, u
   RayHit best;
   for (uint32_t r = first; r < first + count; ++r) {
     const uint32_t prim = tree.ref(r);
-    double t;
-    ++counters.ray_primitive_tests;
-    if (scene.intersect(prim, ray, tmin, std::min(tmax, best.t), t)) {
-      ++counters.hits;
-      if (t < best.t || (t == best.t && prim < best.prim)) best = {prim, t};
-    }
+    offer_primitive(scene, prim, ray, tmin, tmax, best, counters);
   }
   return best;
 }

@@ -20,6 +20,18 @@ struct RayHit {
   bool hit() const { return prim != kNoPrim; }
 };
 
+// Tests primitive `prim` against the ray for tmin <= t <= min(tmax, best.t) and keeps the
+// nearer hit in `best` (equal distances: the lower primitive index, so every method agrees).
+inline void offer_primitive(const Scene& scene, uint32_t prim, const Ray& ray, double tmin, double tmax,
+                            RayHit& best, Counters& counters) {
+  double t;
+  ++counters.ray_primitive_tests;
+  if (scene.intersect(prim, ray, tmin, std::min(tmax, best.t), t)) {
+    ++counters.hits;
+    if (t < best.t || (t == best.t && prim < best.prim)) best = {prim, t};
+  }
+}
+
 // Nearest hit with t >= tmin among all primitives. Also reports the nearest t of a primitive
 // with a different source (for tie detection in tests) through `second_t` when non-null.
 RayHit brute_force_hit(const Scene& scene, const Ray& ray, double tmin, Counters& counters,
