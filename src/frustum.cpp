@@ -38,7 +38,7 @@ struct FrustumCaster::Job {
   uint32_t inc_begin = 0, inc_count = 0;   // incidence list in arenas_in_[arena]
   uint16_t arena = 0;
   uint8_t state = 0;                       // kFresh, kEmpty or kList
-  bool small() const { return x1 - x0 <= 1 && y1 - y0 <= 1; }
+  bool small(int leaf) const { return x1 - x0 < leaf && y1 - y0 < leaf; }
 };
 
 namespace {
@@ -407,7 +407,7 @@ void FrustumCaster::process(Job job, Worker& w) {
         job.state = kFresh;
         continue;
       }
-      if (job.small()) {
+      if (job.small(leaf_)) {
         resolve_by_walking(job, w, false);
         return;
       }
@@ -442,8 +442,8 @@ void FrustumCaster::process(Job job, Worker& w) {
       // Either resolve the frustum's pixels against this cell's elements now (cheap when the
       // elements' screen footprints are small against the frustum), or subdivide (§3.2).
       const size_t npix = size_t(job.x1 - job.x0 + 1) * size_t(job.y1 - job.y0 + 1);
-      const bool have_rects = !job.small();
-      if (job.small() || footprint(job, list, n, w) <= kResolveFactor * double(npix)) {
+      const bool have_rects = !job.small(leaf_);
+      if (job.small(leaf_) || footprint(job, list, n, w) <= kResolveFactor * double(npix)) {
         if (resolve_in_cell(job, list, n, have_rects, w) == 0) return;
       } else {
         if (corners_and_fill(job, list, n, rays, tmins, w)) return;
@@ -472,7 +472,7 @@ void FrustumCaster::process(Job job, Worker& w) {
       job.state = kFresh;
       continue;
     }
-    if (job.small()) {
+    if (job.small(leaf_)) {
       resolve_by_walking(job, w, true);
       return;
     }

@@ -49,6 +49,13 @@ class FrustumCaster {
   FrustumCaster(const Scene& scene, const KdTree& tree, const Shader& shader, int threads);
   ~FrustumCaster();
 
+  // Frusta of at most `pixels` × `pixels` that still need work resolve their pixels by
+  // walking them individually (the paper uses 2 × 2). Larger leaves trade frustum
+  // bookkeeping for per-pixel walks that share the frame's per-cell element lists.
+  // REQUIRES: pixels >= 2. Default kDefaultLeafPixels.
+  static constexpr int kDefaultLeafPixels = 16;
+  void set_leaf_pixels(int pixels) { leaf_ = pixels < 2 ? 2 : pixels; }
+
   // Starts a new frame for `view`; the buffer's frame stamp advances (nothing is cleared).
   // `shade` false resolves visibility only (no lighting work); `shadows` enables the deferred
   // shadow effect when the scene declares lights.
@@ -96,6 +103,7 @@ class FrustumCaster {
   View view_;
   SampleBuffer* buffer_ = nullptr;
   CellMarks* marks_ = nullptr;
+  int leaf_ = kDefaultLeafPixels;
   bool shade_ = true;
   bool shadows_ = true;
   double slack_scale_ = 1.0;

@@ -37,6 +37,7 @@ Counters render_frame(const Scene& scene, const KdTree& tree, const View& view,
   const auto start = std::chrono::steady_clock::now();
   if (options.method == Method::Frustum) {
     FrustumCaster caster(scene, tree, shader, options.threads);
+    caster.set_leaf_pixels(options.leaf_pixels);
     caster.begin(view, buffer, marks, options.shade, options.shadows);
     caster.run(options.budget, total);
   } else {

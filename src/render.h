@@ -28,6 +28,7 @@ struct RenderOptions {
   bool shade = true;        // false: visibility only (ids), no lighting work
   bool shadows = true;      // deferred shadow effect (only if the scene declares lights)
   FrameBudget budget;       // frustum casting only
+  int leaf_pixels = FrustumCaster::kDefaultLeafPixels;  // frustum casting: walk-per-pixel size
 };
 
 // Renders `view` into `buffer` (which keeps per-pixel first-hit primitive, t and colour) and

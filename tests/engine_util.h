@@ -63,9 +63,10 @@ inline Comparison compare_ids(const std::vector<uint32_t>& reference, const std:
 }
 
 inline std::vector<uint32_t> render_ids(const Scene& scene, const KdTree& tree, const View& view, Method method,
-                                        int threads = 2) {
+                                        int threads = 2, int leaf_pixels = FrustumCaster::kDefaultLeafPixels) {
   RenderOptions options;
   options.method = method;
+  options.leaf_pixels = leaf_pixels;
   options.threads = threads;
   options.shade = false;
   SampleBuffer buffer;

@@ -19,9 +19,14 @@ void expect_matches_brute(const Scene& scene, const KdTree& tree, const View& vi
   std::vector<uint32_t> ref;
   std::vector<uint8_t> tie;
   brute_reference(scene, view, ref, tie);
-  for (Method m : {Method::RayWalk, Method::Frustum}) {
-    const Comparison c = compare_ids(ref, tie, render_ids(scene, tree, view, m), view.width);
-    EXPECT_EQ(c.mismatches, 0u) << what << " " << method_name(m) << ": " << c.first_mismatch;
+  // Ray walking, and frustum casting with the paper's 2×2 leaves, odd 5×5 leaves and the default.
+  const std::pair<Method, int> runs[] = {{Method::RayWalk, 0},
+                                         {Method::Frustum, 2},
+                                         {Method::Frustum, 5},
+                                         {Method::Frustum, FrustumCaster::kDefaultLeafPixels}};
+  for (const auto& [m, leaf] : runs) {
+    const Comparison c = compare_ids(ref, tie, render_ids(scene, tree, view, m, 2, leaf), view.width);
+    EXPECT_EQ(c.mismatches, 0u) << what << " " << method_name(m) << " leaf " << leaf << ": " << c.first_mismatch;
     if (ties_out) *ties_out += c.ties;
   }
 }
@@ -58,7 +63,7 @@ TEST(EngineRandom, TwoHundredScenesMatchBruteForce) {
     Camera cam = camera_at(eye, at, 30.0 + 10.0 * (s % 10));
     const View view(cam, 41 + s % 7, 37 + s % 5);
     expect_matches_brute(scene, tree, view, "scene " + std::to_string(s), &ties);
-    pixels += 2 * view.pixels();
+    pixels += 4 * view.pixels();
     if (HasFailure()) return;
   }
   EXPECT_LT(double(ties), 1e-4 * double(pixels)) << ties << " tie pixels of " << pixels;
@@ -76,7 +81,7 @@ TEST(EngineSpd, RingsTreeShellsMatchBruteForce) {
       size_t ties = 0;
       const View view(*scene.camera, size, size);
       expect_matches_brute(scene, tree, view, std::string(name) + " " + std::to_string(size), &ties);
-      EXPECT_LT(double(ties), 1e-4 * 2.0 * double(view.pixels())) << name;
+      EXPECT_LT(double(ties), 1e-4 * 4.0 * double(view.pixels())) << name;
     }
   }
 }

@@ -38,6 +38,7 @@ int main(int argc, char** argv) {
   bool headless = false, no_shadows = false;
   int threads = 0;
   uint32_t cell_prims = 8, min_cell_prims = 0;
+  int leaf_pixels = FrustumCaster::kDefaultLeafPixels;
   double frame_ms = 0.0;
   uint64_t samples = 0;
   app.add_option("SCENE", scene_path, "model file (.nff, .ply, .obj, .off)")->required();
@@ -55,6 +56,9 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1u, 1000000u));
   app.add_option("--min-cell-prims", min_cell_prims, "cells at or below this size never split (coarser cells)")
       ->check(CLI::Range(0u, 1000000u));
+  app.add_option("--leaf-pixels", leaf_pixels,
+                 "frustum: frusta up to N×N pixels walk their pixels individually (paper: 2)")
+      ->check(CLI::Range(2, 4096));
   app.add_flag("--no-shadows", no_shadows, "skip the deferred shadow effect");
   auto* peg_time = app.add_option("--frame-ms", frame_ms, "frustum: peg frame time (stop after MS milliseconds)")
                        ->check(CLI::PositiveNumber);
@@ -95,6 +99,7 @@ int main(int argc, char** argv) {
   options.threads = threads;
   options.shadows = !no_shadows;
   options.budget.ms = frame_ms;
+  options.leaf_pixels = leaf_pixels;
   options.budget.samples = samples;
   SampleBuffer buffer;
   const Counters counters = render_frame(scene, tree, view, options, buffer);

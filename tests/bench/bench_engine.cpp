@@ -25,7 +25,8 @@ struct Run {
 };
 
 // Best of `repeats` (the least disturbed run), visibility only.
-Run measure(const Scene& scene, const KdTree& tree, const View& view, Method method, int threads, int repeats) {
+Run measure(const Scene& scene, const KdTree& tree, const View& view, Method method, int threads, int repeats,
+            int leaf) {
   Run best;
   best.ms = kInfinity;
   for (int r = 0; r < repeats; ++r) {
@@ -33,6 +34,7 @@ Run measure(const Scene& scene, const KdTree& tree, const View& view, Method met
     options.method = method;
     options.threads = threads;
     options.shade = false;
+    options.leaf_pixels = leaf;
     SampleBuffer buffer;
     const auto t0 = std::chrono::steady_clock::now();
     const Counters c = render_frame(scene, tree, view, options, buffer);
@@ -51,11 +53,13 @@ int main(int argc, char** argv) {
   int threads = 2, repeats = 3;
   bool brute = false, frustum_only = false;
   uint32_t min_cell = 0;
+  std::vector<int> leaves = {FrustumCaster::kDefaultLeafPixels};
   app.add_option("scenes", scenes, "NFF/PLY/OBJ/OFF files")->required();
   app.add_option("--sizes", sizes, "square image sizes");
   app.add_option("--threads", threads, "worker threads");
   app.add_option("--repeats", repeats, "runs per measurement (best is kept)");
   app.add_flag("--brute", brute, "also run brute force at the smallest size");
+  app.add_option("--leaf-pixels", leaves, "frustum leaf sizes to measure (one row each)");
   app.add_option("--min-cell-prims", min_cell, "k-d tree: cells at or below this size never split");
   app.add_flag("--frustum-only", frustum_only, "only frustum casting (for profiling)");
   CLI11_PARSE(app, argc, argv);
@@ -80,17 +84,20 @@ int main(int argc, char** argv) {
       if (brute && size == sizes.front()) methods.insert(methods.begin(), Method::Brute);
       double walk_rate = 0.0;
       for (Method m : methods) {
-        const Run run = measure(scene, tree, view, m, threads, m == Method::Brute ? 1 : repeats);
+        for (int leaf : (m == Method::Frustum ? leaves : std::vector<int>{0})) {
+        const Run run = measure(scene, tree, view, m, threads, m == Method::Brute ? 1 : repeats, leaf);
         const double rays = double(view.pixels());
         const double rate = rays / (run.ms / 1000.0);
         if (m == Method::RayWalk) walk_rate = rate;
         const Counters& c = run.counters;
+        const std::string label = m == Method::Frustum ? fmt::format("frustum (leaf {})", leaf) : method_name(m);
         fmt::print("| {} | {}² | {} | {:.1f} | {:.2f} | {} | {:.2f} | {:.2f} | {:.3f} | {} |\n", name, size,
-                   method_name(m), run.ms, rate / 1e6, c.cells_touched, double(c.cell_visits) / rays,
+                   label, run.ms, rate / 1e6, c.cells_touched, double(c.cell_visits) / rays,
                    double(c.ray_primitive_tests) / rays,
                    c.ray_primitive_tests ? double(c.hits) / double(c.ray_primitive_tests) : 0.0,
                    m == Method::Frustum && walk_rate > 0 ? fmt::format("{:.2f}×", rate / walk_rate) : "");
         std::fflush(stdout);
+        }
       }
     }
   }
