@@ -198,6 +198,10 @@ bool intersect_sphere(const Sphere& s, const Ray& ray, double tmin, double tmax,
   const Vec3& d = ray.dir;
   const double a = glm::dot(d, d);
   const double h = glm::dot(oc, d);
+  // Both roots lie within `reach` of the closest approach t = -h/a (reach = r/sqrt(a) <= r/a
+  // for a <= 1): a sphere wholly outside [tmin, tmax] is rejected without a square root.
+  const double tc = -h / a, reach = s.radius * (1.0 + 1e-9) / std::min(a, 1.0);
+  if (tc - reach > tmax || tc + reach < tmin) return false;
   const double r2 = s.radius * s.radius;
   const double c = glm::dot(oc, oc) - r2;
   // h² - a c = a (r² - |perp|²) with perp the centre's offset from the ray's line: no
