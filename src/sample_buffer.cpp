@@ -62,6 +62,10 @@ void reconstruct(SampleBuffer& buf, Rgb fallback) {
       ++n;
     }
     if (n > 0) mean = {float(r / n), float(g / n), float(b / n)};
+    if (n == img.size()) {  // a complete frame: nothing to interpolate
+      for (size_t i = 0; i < img.size(); ++i) img[i] = buf.color(i);
+      return;
+    }
   }
   auto value = [&](int x, int y) -> Rgb& { return img[static_cast<size_t>(y) * w + x]; };
   auto settle = [&](int x, int y, Rgb interpolated) {
