@@ -196,10 +196,14 @@ bool FrustumCaster::run(const FrameBudget& budget, Counters& counters) {
   const auto deadline = start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                                     std::chrono::duration<double, std::milli>(budget.ms));
   auto out_of_budget = [&]() {
-    if (budget.samples > 0 && samples_done_.load(std::memory_order_relaxed) >= budget.samples) return true;
+    if (count_samples_ && samples_done_.load(std::memory_order_relaxed) >= budget.samples) return true;
     return budget.ms > 0.0 && std::chrono::steady_clock::now() >= deadline;
   };
   for (auto& w : workers_) w->counters = Counters{};
+  // The shared sample count is only kept while a sample budget needs it (one contended
+  // atomic per pixel otherwise). A later run with a sample budget starts counting from there.
+  count_samples_ = budget.samples > 0;
+  if (count_samples_) samples_done_ = 0;
   bool interrupted = false;
   while (!complete() && !interrupted) {
     if (current_.empty()) finish_level();
@@ -272,7 +276,7 @@ void FrustumCaster::confirm(int x, int y, uint32_t prim, double t, const Ray& ra
   buffer_->set(i, prim, t, color);
   ++w.counters.samples;
   ++w.counters.rays;
-  samples_done_.fetch_add(1, std::memory_order_relaxed);
+  if (count_samples_) samples_done_.fetch_add(1, std::memory_order_relaxed);
 }
 
 void FrustumCaster::fill_background(const Job& job, Worker& w) {
@@ -284,7 +288,7 @@ void FrustumCaster::fill_background(const Job& job, Worker& w) {
       buffer_->set(i, kNoPrim, kInfinity, bg);
       ++w.counters.samples;
       ++w.counters.rays;
-      samples_done_.fetch_add(1, std::memory_order_relaxed);
+      if (count_samples_) samples_done_.fetch_add(1, std::memory_order_relaxed);
     }
   }
 }

@@ -60,7 +60,8 @@ class FrustumCaster {
   // `shade` false resolves visibility only (no lighting work); `shadows` enables the deferred
   // shadow effect when the scene declares lights.
   void begin(const View& view, SampleBuffer& buffer, CellMarks& marks, bool shade, bool shadows);
-  // Runs queued jobs until the frame is complete or the budget is spent; counters accumulate.
+  // Runs queued jobs until the frame is complete or the budget (time or samples of this call)
+  // is spent; counters accumulate.
   // Returns true when every pixel is resolved. May be called again to continue the frame.
   bool run(const FrameBudget& budget, Counters& counters);
   bool complete() const;
@@ -120,7 +121,8 @@ class FrustumCaster {
   std::vector<Job> current_;                      // jobs of the current level not yet run
   std::vector<std::vector<Incidence>> arenas_in_;  // incidence lists the current level reads
   std::vector<std::unique_ptr<Worker>> workers_;
-  std::atomic<uint64_t> samples_done_{0};
+  std::atomic<uint64_t> samples_done_{0};  // samples confirmed in this run() (sample budgets only)
+  bool count_samples_ = false;
   int threads_ = 1;
   struct Arena;
   std::unique_ptr<Arena> arena_;
