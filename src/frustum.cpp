@@ -30,6 +30,12 @@ constexpr int kPresplitLevels = 4;
 // interrupted level leaves samples spread over the screen (interleaved order, §5.2).
 constexpr std::array<int, 4> kQuadrantOrder = {0, 3, 1, 2};
 
+// True when the four corner rays agree (same entry/exit face, same next cell).
+template <typename T>
+bool all_same(const std::array<T, 4>& v) {
+  return v[1] == v[0] && v[2] == v[0] && v[3] == v[0];
+}
+
 }  // namespace
 
 struct FrustumCaster::Job {
@@ -384,7 +390,6 @@ bool FrustumCaster::classify_planes(int x0, int x1, int y0, int y1, const Aabb& 
 }
 
 void FrustumCaster::process(Job job, Worker& w) {
-  const int W = view_.width;
   const std::array<std::array<int, 2>, 4> corner = {{{job.x0, job.y0}, {job.x1, job.y0},
                                                      {job.x0, job.y1}, {job.x1, job.y1}}};
   std::array<Ray, 4> rays;
@@ -403,10 +408,7 @@ void FrustumCaster::process(Job job, Worker& w) {
         double t_enter;
         cells[k] = tree_.enter_root(rays[k], tmins[k], t_enter, faces[k]);
       }
-      const bool agree = cells[0] != KdTree::kNone && faces[0] >= 0 &&
-                         std::all_of(cells.begin(), cells.end(), [&](int32_t c) { return c == cells[0]; }) &&
-                         std::all_of(faces.begin(), faces.end(), [&](int f) { return f == faces[0]; });
-      if (agree) {
+      if (cells[0] != KdTree::kNone && faces[0] >= 0 && all_same(cells) && all_same(faces)) {
         job.cell = cells[0];
         job.state = kFresh;
         continue;
@@ -464,10 +466,8 @@ void FrustumCaster::process(Job job, Worker& w) {
       exits[k] = tree_.exit(job.cell, rays[k]);
       next[k] = tree_.arrival(job.cell, rays[k], exits[k]);
     }
-    const bool agree = exits[0].face >= 0 &&
-                       std::all_of(exits.begin(), exits.end(), [&](const KdTree::Exit& e) { return e.face == exits[0].face; }) &&
-                       std::all_of(next.begin(), next.end(), [&](int32_t c) { return c == next[0]; });
-    if (agree) {
+    const std::array<int, 4> faces = {exits[0].face, exits[1].face, exits[2].face, exits[3].face};
+    if (faces[0] >= 0 && all_same(faces) && all_same(next)) {
       if (next[0] == KdTree::kNone) {
         fill_background(job, w);
         return;
@@ -483,7 +483,6 @@ void FrustumCaster::process(Job job, Worker& w) {
     split(job, nullptr, 0, w);
     return;
   }
-  (void)W;
 }
 
 // The references of a cell with their screen rectangles and eye distances, sorted nearest

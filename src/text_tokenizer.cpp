@@ -127,33 +127,21 @@ size_t TextTokenizer::scan_token() {
   }
 }
 
-bool TextTokenizer::next(std::string_view& token) {
-  if (skip_blanks(true) != Stop::Token) return false;
+bool TextTokenizer::take(std::string_view& token, bool cross_lines, bool consume) {
+  if (skip_blanks(cross_lines) != Stop::Token) return false;
   const size_t len = scan_token();
   if (len == 0) return false;
   token = std::string_view(buffer_.get() + pos_, len);
-  token_line_ = line_;
-  pos_ += len;
+  if (consume) {
+    token_line_ = line_;
+    pos_ += len;
+  }
   return true;
 }
 
-bool TextTokenizer::next_on_line(std::string_view& token) {
-  if (skip_blanks(false) != Stop::Token) return false;
-  const size_t len = scan_token();
-  if (len == 0) return false;
-  token = std::string_view(buffer_.get() + pos_, len);
-  token_line_ = line_;
-  pos_ += len;
-  return true;
-}
-
-bool TextTokenizer::peek(std::string_view& token) {
-  if (skip_blanks(true) != Stop::Token) return false;
-  const size_t len = scan_token();
-  if (len == 0) return false;
-  token = std::string_view(buffer_.get() + pos_, len);
-  return true;
-}
+bool TextTokenizer::next(std::string_view& token) { return take(token, true, true); }
+bool TextTokenizer::next_on_line(std::string_view& token) { return take(token, false, true); }
+bool TextTokenizer::peek(std::string_view& token) { return take(token, true, false); }
 
 void TextTokenizer::skip_line() {
   for (;;) {

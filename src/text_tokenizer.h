@@ -76,6 +76,8 @@ class TextTokenizer {
   enum class Stop { Token, LineEnd, FileEnd };
   Stop skip_blanks(bool cross_lines);
   size_t scan_token();  // length of the token at pos_ (may refill); 0 on error
+  // Reads the token at the cursor (crossing line ends or not); consumes it unless peeking.
+  bool take(std::string_view& token, bool cross_lines, bool consume);
   size_t ensure(size_t want);
   Status number_error(std::string_view token, std::string_view what, bool not_finite) const;
 
