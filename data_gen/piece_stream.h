@@ -4,7 +4,7 @@
 #pragma once
 
 #include "data_gen/mesh_builder.h"
-#include "data_gen/progress.h"
+#include "src/progress.h"
 #include "src/ply_writer.h"
 #include "src/status.h"
 

@@ -2,7 +2,7 @@
 // are walked depth-first and recomputed (from per-node seeded streams) instead of stored.
 #include "data_gen/spheres.h"
 
-#include "data_gen/progress.h"
+#include "src/progress.h"
 #include "data_gen/rng.h"
 #include "src/nff_writer.h"
 

@@ -7,6 +7,8 @@
 #include <cassert>
 #include <cmath>
 
+#include <tbb/parallel_invoke.h>
+
 namespace frontier {
 
 namespace {
@@ -14,6 +16,9 @@ namespace {
 // Empty space cut off by a split earns the SAH bonus only if it is at least this fraction of
 // the node's extent on that axis.
 constexpr double kMinEmptyFraction = 0.05;
+
+// Subtrees with at least this many items are built in parallel (tbb::parallel_invoke).
+constexpr size_t kParallelItems = 50000;
 
 struct Item {
   uint32_t prim;
@@ -46,32 +51,90 @@ class KdBuilder {
       items.push_back({i, b});
       root.extend(b);
     }
-    if (items.empty()) {
-      root = Aabb(Vec3(-1.0), Vec3(1.0));
-    }
-    const double scale = std::max(glm::length(root.extent()), 1e-300);
-    for (Item& it : items) it.box = padded(it.box, scale);
-    // The root is padded a little more than the primitives so that no primitive touches it.
-    root = padded(root, 2.0 * scale);
-    // Give flat roots some thickness: cells are never flat.
-    for (int a = 0; a < 3; ++a) {
-      if (root.hi[a] - root.lo[a] <= 1e-9 * scale) {
-        root.lo[a] -= 1e-6 * scale;
-        root.hi[a] += 1e-6 * scale;
+    if (options_.root) {
+      const Aabb given = *options_.root;
+      const double scale = std::max(glm::length(given.extent()), 1e-300);
+      clip_items(items, given, scale);
+      root = given;
+    } else {
+      if (items.empty()) root = Aabb(Vec3(-1.0), Vec3(1.0));
+      const double scale = std::max(glm::length(root.extent()), 1e-300);
+      // The root is padded a little more than the primitives so that no primitive touches it.
+      root = padded(root, 2.0 * scale);
+      // Give flat roots some thickness: cells are never flat.
+      for (int a = 0; a < 3; ++a) {
+        if (root.hi[a] - root.lo[a] <= 1e-9 * scale) {
+          root.lo[a] -= 1e-6 * scale;
+          root.hi[a] += 1e-6 * scale;
+        }
       }
+      clip_items(items, root, scale);
     }
-    for (Item& it : items) it.box = it.box.intersection(root);
     tree_.bounds_ = root;
+    set_max_depth(items.size());
+    recurse(std::move(items), root, 0);
+    finish(root);
+  }
+
+  void refine(const Scene& scene, const std::vector<KdTree::Node>& top, const Aabb& top_bounds,
+              const std::vector<std::vector<uint32_t>>& cell_prims) {
+    tree_.bounds_ = top_bounds;
+    const double scale = std::max(glm::length(top_bounds.extent()), 1e-300);
+    size_t largest = 0;
+    for (const auto& prims : cell_prims) largest = std::max(largest, prims.size());
+    set_max_depth(largest);
+    replay(scene, top, 0, top_bounds, cell_prims, scale, 0);
+    finish(top_bounds);
+  }
+
+ private:
+  // Pads item bounds and clips them to `box`, dropping items that miss it.
+  static void clip_items(std::vector<Item>& items, const Aabb& box, double scale) {
+    size_t kept = 0;
+    for (Item& it : items) {
+      const Aabb b = padded(it.box, scale).intersection(box);
+      if (b.empty()) continue;
+      items[kept++] = {it.prim, b};
+    }
+    items.resize(kept);
+  }
+
+  void set_max_depth(size_t items) {
     max_depth_ = options_.max_depth != 0
                      ? options_.max_depth
-                     : static_cast<uint32_t>(8 + 1.3 * std::log2(std::max<size_t>(items.size(), 1)));
-    recurse(std::move(items), root, 0);
+                     : static_cast<uint32_t>(8 + 1.3 * std::log2(std::max<size_t>(items, 1)));
+  }
+
+  void finish(const Aabb& root) {
     std::array<int32_t, 6> ropes;
     ropes.fill(KdTree::kNone);
     assign_ropes(0, root, ropes);
   }
 
- private:
+  // Copies the given top node (and its subtree) and builds each top cell's primitives below it.
+  uint32_t replay(const Scene& scene, const std::vector<KdTree::Node>& top, uint32_t t, const Aabb& box,
+                  const std::vector<std::vector<uint32_t>>& cell_prims, double scale, uint32_t depth) {
+    const KdTree::Node node = top.at(t);
+    if (node.is_leaf()) {
+      std::vector<Item> items;
+      const auto& prims = cell_prims.at(node.child);
+      items.reserve(prims.size());
+      for (const uint32_t p : prims) items.push_back({p, scene.prim_bounds(p)});
+      clip_items(items, box, scale);
+      return recurse(std::move(items), box, depth);
+    }
+    const uint32_t index = static_cast<uint32_t>(tree_.nodes_.size());
+    tree_.nodes_.push_back({});
+    const int a = static_cast<int>(node.axis_or_leaf);
+    Aabb lbox = box, rbox = box;
+    lbox.hi[a] = node.split;
+    rbox.lo[a] = node.split;
+    replay(scene, top, t + 1, lbox, cell_prims, scale, depth + 1);
+    const uint32_t upper = replay(scene, top, node.child, rbox, cell_prims, scale, depth + 1);
+    tree_.nodes_[index] = {node.split, node.axis_or_leaf, upper};
+    return index;
+  }
+
   struct Split {
     int axis = -1;
     double pos = 0.0;
@@ -178,13 +241,44 @@ class KdBuilder {
     }
     items.clear();
     items.shrink_to_fit();
-    recurse(std::move(left), lbox, depth + 1);
-    const uint32_t upper = recurse(std::move(right), rbox, depth + 1);
+    uint32_t upper;
+    if (left.size() + right.size() >= kParallelItems) {
+      // Big subtrees: the upper child is built by another builder on another thread, then its
+      // nodes, cells and references are appended after the lower child's (preorder is kept).
+      KdTree side;
+      KdBuilder other(side, options_);
+      other.max_depth_ = max_depth_;
+      tbb::parallel_invoke([&] { recurse(std::move(left), lbox, depth + 1); },
+                           [&] { other.recurse(std::move(right), rbox, depth + 1); });
+      upper = append(side);
+    } else {
+      recurse(std::move(left), lbox, depth + 1);
+      upper = recurse(std::move(right), rbox, depth + 1);
+    }
     KdTree::Node& node = tree_.nodes_[index];
     node.split = pos;
     node.axis_or_leaf = static_cast<uint32_t>(axis);
     node.child = upper;
     return index;
+  }
+
+  // Appends a subtree built by another builder (ropes not yet assigned); returns its root.
+  uint32_t append(const KdTree& side) {
+    const auto node_base = static_cast<uint32_t>(tree_.nodes_.size());
+    const auto cell_base = static_cast<uint32_t>(tree_.cells_.size());
+    const auto ref_base = static_cast<uint32_t>(tree_.refs_.size());
+    for (KdTree::Node n : side.nodes_) {
+      n.child += n.is_leaf() ? cell_base : node_base;
+      tree_.nodes_.push_back(n);
+    }
+    for (KdTree::Cell c : side.cells_) {
+      c.first += ref_base;
+      tree_.cells_.push_back(c);
+    }
+    tree_.refs_.insert(tree_.refs_.end(), side.refs_.begin(), side.refs_.end());
+    tree_.ref_bounds_.insert(tree_.ref_bounds_.end(), side.ref_bounds_.begin(), side.ref_bounds_.end());
+    tree_.depth_ = std::max(tree_.depth_, side.depth_);
+    return node_base;
   }
 
   void make_leaf(uint32_t index, const std::vector<Item>& items, const Aabb& box) {
@@ -252,6 +346,14 @@ KdTree KdTree::build(const Scene& scene, const KdBuildOptions& options) {
   KdTree tree;
   KdBuilder builder(tree, options);
   builder.build(scene);
+  return tree;
+}
+
+KdTree KdTree::refine(const Scene& scene, const std::vector<Node>& top_nodes, const Aabb& top_bounds,
+                      const std::vector<std::vector<uint32_t>>& cell_prims, const KdBuildOptions& options) {
+  KdTree tree;
+  KdBuilder builder(tree, options);
+  builder.refine(scene, top_nodes, top_bounds, cell_prims);
   return tree;
 }
 

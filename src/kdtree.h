@@ -15,6 +15,7 @@
 #include "src/scene.h"
 
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 namespace frontier {
@@ -27,6 +28,9 @@ struct KdBuildOptions {
   double intersection_cost = 1.0;
   double empty_bonus = 0.2;      // SAH discount for cutting off empty space
   int bins = 32;
+  // When set, the root is exactly this box (no padding) and primitives are clipped to it:
+  // how the out-of-core builder builds one partition, and how a store's cells are refined.
+  std::optional<Aabb> root;
 };
 
 class KdTree {
@@ -56,6 +60,12 @@ class KdTree {
   };
 
   static KdTree build(const Scene& scene, const KdBuildOptions& options = {});
+  // A tree whose upper levels are given — `top_nodes` over `top_bounds`, as a store's top tree
+  // (Node::child of a leaf indexes `cell_prims`) — and whose top cells are each built further
+  // by the SAH builder from the scene primitives listed for them. Ties, padding and ropes as in
+  // build(); with options.min_cell_prims = UINT32_MAX the top cells stay as they are.
+  static KdTree refine(const Scene& scene, const std::vector<Node>& top_nodes, const Aabb& top_bounds,
+                       const std::vector<std::vector<uint32_t>>& cell_prims, const KdBuildOptions& options = {});
 
   const Aabb& bounds() const { return bounds_; }
   const std::vector<Node>& nodes() const { return nodes_; }

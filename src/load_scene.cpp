@@ -1,4 +1,4 @@
-// load_scene: pulls every primitive from a SceneReader into an in-memory Scene.
+// load_scene and SceneBuilder: pull primitives from a SceneReader into an in-memory Scene.
 //
 // Invariant: the i-th input primitive (0-based, file order) has source id i, whatever becomes
 // of it: a polygon's triangles all share its id, and a dropped degenerate primitive still uses
@@ -27,68 +27,59 @@ bool degenerate(const Vec3& a, const Vec3& b, const Vec3& c) {
   return !(cross2 > 0.0) || std::sqrt(cross2) < 1e-14 * longest2;
 }
 
-class SceneBuilder {
- public:
-  explicit SceneBuilder(Scene& scene) : scene_(scene) {}
-
-  void add(const InputPrimitive& p, uint32_t source) {
-    switch (p.kind) {
-      case InputPrimitive::Kind::Polygon: add_polygon(p, source); break;
-      case InputPrimitive::Kind::Sphere:
-        if (p.sphere.radius > 0.0) {
-          scene_.add_sphere(p.sphere, source, p.material);
-        } else {
-          ++scene_.degenerate_dropped;
-        }
-        break;
-      case InputPrimitive::Kind::Cone: {
-        const Cone& c = p.cone;
-        if (c.base != c.apex && (c.base_radius > 0.0 || c.apex_radius > 0.0)) {
-          scene_.add_cone(c, source, p.material);
-        } else {
-          ++scene_.degenerate_dropped;
-        }
-        break;
-      }
-      case InputPrimitive::Kind::Box: scene_.add_box(p.box, source, p.material); break;
-      case InputPrimitive::Kind::Quadric: scene_.add_quadric(p.quadric, source, p.material); break;
-    }
-  }
-
- private:
-  void add_triangle(const InputPrimitive& p, uint32_t a, uint32_t b, uint32_t c, uint32_t source) {
-    const Vec3 &va = p.vertices[a], &vb = p.vertices[b], &vc = p.vertices[c];
-    if (degenerate(va, vb, vc)) {
-      ++scene_.degenerate_dropped;
-      return;
-    }
-    if (p.normals.size() == p.vertices.size()) {
-      const std::array<Vec3, 3> n = {p.normals[a], p.normals[b], p.normals[c]};
-      scene_.add_triangle({va, vb, vc}, source, p.material, &n);
-    } else {
-      scene_.add_triangle({va, vb, vc}, source, p.material);
-    }
-  }
-
-  void add_polygon(const InputPrimitive& p, uint32_t source) {
-    const size_t n = p.vertices.size();
-    if (n < 3) return;  // readers never hand these out
-    if (n == 3) {
-      add_triangle(p, 0, 1, 2, source);
-      return;
-    }
-    if (!triangulate_polygon(p.vertices, triangles_)) {
-      scene_.degenerate_dropped += n - 2;
-      return;
-    }
-    for (const auto& t : triangles_) add_triangle(p, t[0], t[1], t[2], source);
-  }
-
-  Scene& scene_;
-  std::vector<std::array<uint32_t, 3>> triangles_;
-};
-
 }  // namespace
+
+void SceneBuilder::add(const InputPrimitive& p, uint32_t source) {
+  switch (p.kind) {
+    case InputPrimitive::Kind::Polygon: add_polygon(p, source); break;
+    case InputPrimitive::Kind::Sphere:
+      if (p.sphere.radius > 0.0) {
+        scene_.add_sphere(p.sphere, source, p.material);
+      } else {
+        ++scene_.degenerate_dropped;
+      }
+      break;
+    case InputPrimitive::Kind::Cone: {
+      const Cone& c = p.cone;
+      if (c.base != c.apex && (c.base_radius > 0.0 || c.apex_radius > 0.0)) {
+        scene_.add_cone(c, source, p.material);
+      } else {
+        ++scene_.degenerate_dropped;
+      }
+      break;
+    }
+    case InputPrimitive::Kind::Box: scene_.add_box(p.box, source, p.material); break;
+    case InputPrimitive::Kind::Quadric: scene_.add_quadric(p.quadric, source, p.material); break;
+  }
+}
+
+void SceneBuilder::add_triangle(const InputPrimitive& p, uint32_t a, uint32_t b, uint32_t c, uint32_t source) {
+  const Vec3 &va = p.vertices[a], &vb = p.vertices[b], &vc = p.vertices[c];
+  if (degenerate(va, vb, vc)) {
+    ++scene_.degenerate_dropped;
+    return;
+  }
+  if (p.normals.size() == p.vertices.size()) {
+    const std::array<Vec3, 3> n = {p.normals[a], p.normals[b], p.normals[c]};
+    scene_.add_triangle({va, vb, vc}, source, p.material, &n);
+  } else {
+    scene_.add_triangle({va, vb, vc}, source, p.material);
+  }
+}
+
+void SceneBuilder::add_polygon(const InputPrimitive& p, uint32_t source) {
+  const size_t n = p.vertices.size();
+  if (n < 3) return;  // readers never hand these out
+  if (n == 3) {
+    add_triangle(p, 0, 1, 2, source);
+    return;
+  }
+  if (!triangulate_polygon(p.vertices, triangles_)) {
+    scene_.degenerate_dropped += n - 2;
+    return;
+  }
+  for (const auto& t : triangles_) add_triangle(p, t[0], t[1], t[2], source);
+}
 
 Status load_scene(const std::string& path, Scene& scene) {
   scene = Scene{};

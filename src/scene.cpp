@@ -63,6 +63,20 @@ Vec3 Scene::shading_normal(uint32_t i, const Vec3& hit, const Ray& ray) const {
   return glm::dot(n, ray.dir) > 0.0 ? -n : n;
 }
 
+void Scene::add_from(const Scene& other, uint32_t i) {
+  const PrimRef& p = other.prims[i];
+  switch (p.kind) {
+    case PrimKind::Triangle:
+      add_triangle(other.triangles[p.index], p.source, p.material,
+                   other.triangle_normals.empty() ? nullptr : &other.triangle_normals[p.index]);
+      break;
+    case PrimKind::Sphere: add_sphere(other.spheres[p.index], p.source, p.material); break;
+    case PrimKind::Box: add_box(other.boxes[p.index], p.source, p.material); break;
+    case PrimKind::Cone: add_cone(other.cones[p.index], p.source, p.material); break;
+    case PrimKind::Quadric: add_quadric(other.quadrics[p.index], p.source, p.material); break;
+  }
+}
+
 void Scene::add_triangle(const Triangle& t, uint32_t source, uint32_t material,
                          const std::array<Vec3, 3>* normals) {
   if (normals != nullptr && triangle_normals.size() < triangles.size()) {

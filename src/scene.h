@@ -83,6 +83,8 @@ struct Scene {
   void add_box(const Box& b, uint32_t source, uint32_t material);
   void add_cone(const Cone& c, uint32_t source, uint32_t material);
   void add_quadric(const Quadric& q, uint32_t source, uint32_t material);
+  // Appends primitive i of `other` (geometry, normals, source, material).
+  void add_from(const Scene& other, uint32_t i);
 
   // Moves every primitive, light and the camera by `offset` (tests of far-from-origin input).
   void translate(const Vec3& offset);

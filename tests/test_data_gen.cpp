@@ -9,6 +9,7 @@
 #include "src/nff_writer.h"
 #include "src/ply_writer.h"
 #include "src/scene.h"
+#include "tests/process_util.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -39,13 +40,7 @@ namespace {
 namespace fs = std::filesystem;
 using json = nlohmann::json;
 
-std::string gen_binary() {
-#ifdef FRONTIER_GEN_PATH
-  return FRONTIER_GEN_PATH;
-#else
-  return std::string(FRONTIER_BINARY_DIR) + "/data_gen/frontier-gen";
-#endif
-}
+using frontier::proc::gen_binary;
 
 fs::path scratch_dir() {
   static const fs::path dir = fs::temp_directory_path() / ("frontier_datagen_" + std::to_string(::getpid()));
@@ -64,50 +59,12 @@ class ScratchCleanup : public testing::Environment {
 [[maybe_unused]] testing::Environment* const scratch_cleanup =
     testing::AddGlobalTestEnvironment(new ScratchCleanup);
 
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-struct RunResult {
-  int exit_code = -1;
-  std::string out, err;
-  long max_rss_kb = 0;
-};
+using frontier::proc::RunResult;
+using frontier::proc::slurp;
 
 // Runs frontier-gen with `args`; stdout and stderr are captured, peak RSS measured (wait4).
 RunResult run_gen(const std::vector<std::string>& args) {
-  static int counter = 0;
-  const fs::path out = scratch_dir() / ("stdout_" + std::to_string(counter));
-  const fs::path err = scratch_dir() / ("stderr_" + std::to_string(counter++));
-  const std::string bin = gen_binary();
-  std::vector<std::string> argv_s = {bin};
-  argv_s.insert(argv_s.end(), args.begin(), args.end());
-  std::vector<char*> argv;
-  for (std::string& a : argv_s) argv.push_back(a.data());
-  argv.push_back(nullptr);
-  RunResult r;
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    const int fo = ::open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    const int fe = ::open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    ::dup2(fo, STDOUT_FILENO);
-    ::dup2(fe, STDERR_FILENO);
-    ::execv(bin.c_str(), argv.data());
-    _exit(127);
-  }
-  int status = 0;
-  struct rusage ru {};
-  ::wait4(pid, &status, 0, &ru);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  r.max_rss_kb = ru.ru_maxrss;
-  r.out = slurp(out);
-  r.err = slurp(err);
-  fs::remove(out);
-  fs::remove(err);
-  return r;
+  return frontier::proc::run_binary(gen_binary(), args, scratch_dir());
 }
 
 // --- a small, strict reader of the PLY files frontier-gen writes ---------------------------

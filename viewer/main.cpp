@@ -1,11 +1,13 @@
-// frontier-view: the command-line front end. This version renders a model file loaded in
-// memory, headless, with a choice of visibility method; exit code 0 on success, 1 on bad input
+// frontier-view: the command-line front end. This version renders a model file or a store loaded
+// in memory, headless, with a choice of visibility method; exit code 0 on success, 1 on bad input
 // (the message names the file and line), 2 on bad options.
 #include "src/image.h"
 #include "src/kdtree.h"
 #include "src/render.h"
 #include "src/scene.h"
+#include "src/store_model.h"
 #include "src/view.h"
+#include "store/page_format.h"
 
 #include <CLI/CLI.hpp>
 #include <fmt/core.h>
@@ -13,6 +15,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 
 using namespace frontier;
@@ -29,11 +32,22 @@ bool parse_size(const std::string& text, int& w, int& h) {
   return true;
 }
 
+// A store file starts with the store magic (store/FORMAT.md); anything else is a model file.
+bool is_store(const std::string& path) {
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  if (f == nullptr) return false;
+  char magic[8] = {};
+  const size_t got = std::fread(magic, 1, sizeof magic, f);
+  std::fclose(f);
+  return got == sizeof magic && std::memcmp(magic, store::kMagic.data(), sizeof magic) == 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{"frontier-view: render a model with exact per-pixel visibility (ray casting on the CPU).\n"
-               "Reads NFF, PLY, OBJ or OFF into memory, builds a k-d tree and renders one frame headless."};
+               "Reads NFF, PLY, OBJ or OFF (or a store from frontier-build, decoded whole) into memory,\n"
+               "builds a k-d tree and renders one frame headless."};
   std::string scene_path, size_text, method_text = "frustum", png_path, ids_path, stats_path;
   bool headless = false, no_shadows = false;
   int threads = 0;
@@ -41,7 +55,7 @@ int main(int argc, char** argv) {
   int leaf_pixels = FrustumCaster::kDefaultLeafPixels;
   double frame_ms = 0.0;
   uint64_t samples = 0;
-  app.add_option("SCENE", scene_path, "model file (.nff, .ply, .obj, .off)")->required();
+  app.add_option("SCENE", scene_path, "model file (.nff, .ply, .obj, .off) or store file (frontier-build)")->required();
   app.add_flag("--headless", headless, "render without a window (required in this version)");
   app.add_option("--size", size_text, "image size WxH (default: the scene's resolution, else 512x512)");
   app.add_option("--method", method_text, "visibility method: brute | raywalk | frustum")
@@ -75,16 +89,29 @@ int main(int argc, char** argv) {
   parse_method(method_text, method);
 
   Scene scene;
-  const auto t0 = std::chrono::steady_clock::now();
-  if (Status s = load_scene(scene_path, scene); !s) {
-    std::fprintf(stderr, "frontier-view: %s\n", s.to_string().c_str());
-    return 1;
-  }
-  const auto t1 = std::chrono::steady_clock::now();
+  KdTree tree;
   KdBuildOptions build;
   build.max_cell_prims = cell_prims;
   build.min_cell_prims = min_cell_prims;
-  const KdTree tree = KdTree::build(scene, build);
+  const auto t0 = std::chrono::steady_clock::now();
+  auto t1 = t0;
+  if (is_store(scene_path)) {
+    // A store rendered in memory: every page decoded, each store cell refined by the SAH builder.
+    auto model = StoreModel::open(scene_path);
+    Status s = model ? (*model)->load_all(scene, tree, build) : model.status();
+    if (!s) {
+      std::fprintf(stderr, "frontier-view: %s\n", s.to_string().c_str());
+      return 1;
+    }
+    t1 = std::chrono::steady_clock::now();
+  } else {
+    if (Status s = load_scene(scene_path, scene); !s) {
+      std::fprintf(stderr, "frontier-view: %s\n", s.to_string().c_str());
+      return 1;
+    }
+    t1 = std::chrono::steady_clock::now();
+    tree = KdTree::build(scene, build);
+  }
   const auto t2 = std::chrono::steady_clock::now();
 
   Camera camera = scene.camera ? *scene.camera : automatic_camera(scene.bounds());

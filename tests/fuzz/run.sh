@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets with clang (ASan + UBSan) and runs each for SECONDS (default
-# 60), seeded with the SPD scenes and small generated files. Findings land in
+# 60), seeded with the SPD scenes and small generated files (the cell page target writes valid
+# pages of both codecs into its corpus itself, FRONTIER_FUZZ_SEEDS). Findings land in
 # build-fuzz/findings/. Usage: tests/fuzz/run.sh [SECONDS]
 set -euo pipefail
 seconds=${1:-60}
@@ -8,9 +9,9 @@ root=$(cd "$(dirname "$0")/../.." && pwd)
 build="$root/build-fuzz"
 CC=clang CXX=clang++ cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DFRONTIER_FUZZ=ON -DFRONTIER_BUILD_TESTS=OFF > /dev/null
-cmake --build "$build" --target fuzz_nff fuzz_ply fuzz_obj fuzz_off
+cmake --build "$build" --target fuzz_nff fuzz_ply fuzz_obj fuzz_off fuzz_cell_page
 mkdir -p "$build/findings"
-for format in nff ply obj off; do
+for format in nff ply obj off cell_page; do
   corpus="$build/corpus/$format"
   mkdir -p "$corpus"
   case $format in
@@ -18,6 +19,7 @@ for format in nff ply obj off; do
     ply) printf 'ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n' > "$corpus/tri.ply" ;;
     obj) printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nvn 0 0 1\nf 1//1 2//1 3//1\nf -1 -2 -3\n' > "$corpus/quad.obj" ;;
     off) printf 'OFF\n4 2 0\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n3 1 3 2\n' > "$corpus/quad.off" ;;
+    cell_page) export FRONTIER_FUZZ_SEEDS="$corpus" ;;
   esac
   echo "fuzz_$format: $seconds s"
   "$build/tests/fuzz/fuzz_$format" -max_total_time="$seconds" -max_len=65536 -timeout=10 \

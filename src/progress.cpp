@@ -1,19 +1,48 @@
 // Rate-limited progress line (see header).
-#include "data_gen/progress.h"
+#include "src/progress.h"
 
 #include <fmt/format.h>
 
+#include <cctype>
 #include <cstdio>
+#include <string>
 
 #include <unistd.h>
 
-namespace frontier::gen {
+namespace frontier {
 
 std::string human_count(double n) {
   if (n >= 1e9) return fmt::format("{:.2f}G", n / 1e9);
   if (n >= 1e6) return fmt::format("{:.1f}M", n / 1e6);
   if (n >= 1e4) return fmt::format("{:.1f}k", n / 1e3);
   return fmt::format("{:.0f}", n);
+}
+
+std::optional<uint64_t> parse_byte_size(std::string_view text) {
+  size_t i = 0;
+  while (i < text.size() && (std::isdigit(static_cast<unsigned char>(text[i])) || text[i] == '.')) ++i;
+  if (i == 0) return std::nullopt;
+  double value = 0.0;
+  try {
+    size_t used = 0;
+    value = std::stod(std::string(text.substr(0, i)), &used);
+    if (used != i) return std::nullopt;
+  } catch (const std::exception&) {
+    return std::nullopt;
+  }
+  std::string unit(text.substr(i));
+  for (char& c : unit) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+  if (unit.size() >= 2 && unit.substr(unit.size() - 2) == "IB") unit.resize(unit.size() - 2);
+  else if (!unit.empty() && unit.back() == 'B') unit.pop_back();
+  double scale = 1.0;
+  if (unit == "K") scale = 1024.0;
+  else if (unit == "M") scale = 1024.0 * 1024.0;
+  else if (unit == "G") scale = 1024.0 * 1024.0 * 1024.0;
+  else if (unit == "T") scale = 1024.0 * 1024.0 * 1024.0 * 1024.0;
+  else if (!unit.empty()) return std::nullopt;
+  const double bytes = value * scale;
+  if (!(bytes >= 0.0) || bytes >= 1.8e19) return std::nullopt;
+  return static_cast<uint64_t>(bytes);
 }
 
 Progress::Progress(std::string label, std::string unit, uint64_t total, bool quiet)
@@ -63,4 +92,4 @@ void Progress::finish() {
   if (!quiet_) print(true);
 }
 
-}  // namespace frontier::gen
+}  // namespace frontier

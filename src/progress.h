@@ -5,9 +5,11 @@
 
 #include <chrono>
 #include <cstdint>
+#include <optional>
+#include <string_view>
 #include <string>
 
-namespace frontier::gen {
+namespace frontier {
 
 class Progress {
  public:
@@ -30,4 +32,8 @@ class Progress {
 // "12.3M", "4.56G" style counts.
 std::string human_count(double n);
 
-}  // namespace frontier::gen
+// Parses a byte size for options: "1048576", "512K", "64M", "1.5G", "2T" (binary units, an
+// optional trailing "B" or "iB"). nullopt for anything else, including 0-free garbage and overflow.
+std::optional<uint64_t> parse_byte_size(std::string_view text);
+
+}  // namespace frontier

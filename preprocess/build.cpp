@@ -1,0 +1,591 @@
+// The out-of-core store build (stages in build.h).
+#include "preprocess/build.h"
+
+#include "preprocess/spill.h"
+#include "preprocess/walkable_grid.h"
+#include "src/kdtree.h"
+#include "src/progress.h"
+#include "src/scene_reader.h"
+#include "src/store_model.h"
+#include "store/page_file.h"
+#include "store/store_file.h"
+
+#include <fmt/format.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <random>
+
+#include <stdlib.h>
+
+namespace frontier {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr size_t kBatch = 4096;            // records per spill read
+constexpr size_t kSampleSize = 1 << 15;    // reservoir of primitive centres per file
+constexpr size_t kPartBuffer = 1 << 20;    // spill buffer of each part being written
+constexpr size_t kMaxFanOut = 64;          // parts written in one pass
+constexpr size_t kEncodeChunk = 256;       // cells encoded in parallel before they are written
+
+double seconds_since(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
+
+// A uniform sample of primitive centres (Vitter's algorithm R), deterministic.
+class Reservoir {
+ public:
+  explicit Reservoir(uint64_t seed) : rng_(seed) {}
+  void offer(const Vec3& p) {
+    ++seen_;
+    if (points_.size() < kSampleSize) {
+      points_.push_back(p);
+      return;
+    }
+    const uint64_t k = std::uniform_int_distribution<uint64_t>(0, seen_ - 1)(rng_);
+    if (k < kSampleSize) points_[k] = p;
+  }
+  std::vector<Vec3>& points() { return points_; }
+
+ private:
+  std::mt19937_64 rng_;
+  std::vector<Vec3> points_;
+  uint64_t seen_ = 0;
+};
+
+// The temporary directory beside the output; removed with everything in it on destruction.
+class TempDir {
+ public:
+  static Result<TempDir> create(const std::string& output) {
+    const fs::path out(output);
+    const fs::path dir = out.has_parent_path() ? out.parent_path() : fs::path(".");
+    const std::string prefix = "." + out.filename().string() + ".build-";
+    // Leftovers of killed builds of the same output.
+    std::error_code ec;
+    for (const auto& entry : fs::directory_iterator(dir, ec)) {
+      if (entry.path().filename().string().rfind(prefix, 0) == 0) fs::remove_all(entry.path(), ec);
+    }
+    std::string pattern = (dir / (prefix + "XXXXXX")).string();
+    if (::mkdtemp(pattern.data()) == nullptr) {
+      return Status::io_error(fmt::format("{}: cannot create a temporary directory: {}", pattern, std::strerror(errno)));
+    }
+    TempDir t;
+    t.path_ = pattern;
+    return t;
+  }
+  TempDir() = default;
+  TempDir(TempDir&& o) noexcept : path_(std::exchange(o.path_, {})) {}
+  TempDir& operator=(TempDir&&) = delete;
+  ~TempDir() {
+    std::error_code ec;
+    if (!path_.empty()) fs::remove_all(path_, ec);
+  }
+  std::string file(const std::string& name) const { return (fs::path(path_) / name).string(); }
+
+ private:
+  std::string path_;
+};
+
+Aabb padded_root(const Aabb& bounds, double extra) {
+  const double scale = std::max(glm::length(bounds.extent()), 1e-300);
+  const double eps = extra + 2e-9 * scale + 1e-12 * std::max(1.0, bounds.magnitude());
+  Aabb r = bounds;
+  r.lo -= Vec3(eps);
+  r.hi += Vec3(eps);
+  for (int a = 0; a < 3; ++a) {
+    if (r.hi[a] - r.lo[a] <= 1e-9 * scale) {
+      r.lo[a] -= 1e-6 * scale;
+      r.hi[a] += 1e-6 * scale;
+    }
+  }
+  return r;
+}
+
+// Zero-area triangles (after snapping to the lattice) are dropped like the readers drop them.
+bool zero_area(const Triangle& t) {
+  const Vec3 n = glm::cross(t.v1 - t.v0, t.v2 - t.v0);
+  return !(glm::dot(n, n) > 0.0);
+}
+
+// A file of primitives that still has to be turned into cells.
+struct Part {
+  std::string path;
+  Aabb region;
+  uint64_t count = 0;
+  std::vector<Vec3> sample;
+};
+
+// The upper levels of the tree planned from a sample: median splits on the longest axis.
+struct PlanNode {
+  int axis = -1;                // -1: leaf
+  double split = 0.0;
+  int lower = -1, upper = -1;   // plan node indices
+  int part = -1;                // leaf: index into the parts being written
+  Aabb region;
+};
+
+class StoreBuilder {
+ public:
+  explicit StoreBuilder(const BuildOptions& options) : options_(options) {}
+
+  Result<BuildReport> run() {
+    const auto start = std::chrono::steady_clock::now();
+    if (Status s = check_options(); !s) return s;
+    auto temp = TempDir::create(options_.output);
+    if (!temp) return temp.status();
+    temp_.emplace(std::move(*temp));
+    store::PosixFileSystem fsys;
+    auto writer = store::StoreWriter::create(fsys, options_.output);
+    if (!writer) return writer.status();
+    writer_ = std::move(*writer);
+    const int threads = options_.threads > 0 ? options_.threads : static_cast<int>(tbb::task_arena::automatic);
+    arena_.emplace(threads);
+
+    auto t = std::chrono::steady_clock::now();
+    Part root;
+    if (Status s = ingest(root); !s) return s;
+    report_.ingest_seconds = seconds_since(t);
+
+    capacity_ = options_.part_primitives > 0
+                    ? options_.part_primitives
+                    : std::max<uint64_t>(options_.memory / kBytesPerPrimitive, 4ull * options_.cell_prims);
+    if (options_.walkable) {
+      const double voxel = options_.sdf_voxel > 0.0 ? options_.sdf_voxel : WalkableGridBuilder::default_voxel_size(bounds_);
+      grid_.emplace(voxel);
+      info_.sdf_voxel = voxel;
+    }
+    root_count_ = root.count;
+    build_progress_.emplace("build", "primitives", root.count, options_.quiet);
+    if (Status s = process(std::move(root), 0); !s) return s;
+    build_progress_->finish();
+
+    if (Status s = finish(); !s) return s;
+    report_.seconds = seconds_since(start);
+    return report_;
+  }
+
+ private:
+  Status check_options() const {
+    if (options_.inputs.empty()) return Status::invalid_argument("no input files");
+    if (options_.output.empty()) return Status::invalid_argument("no output file (-o)");
+    if (options_.quant_bits < 8 || options_.quant_bits > 30) {
+      return Status::invalid_argument(fmt::format("--quant-bits {}: must be 8..30", options_.quant_bits));
+    }
+    if (options_.cell_prims < 1) return Status::invalid_argument("--cell-prims must be at least 1");
+    if (options_.memory < (uint64_t{16} << 20)) {
+      return Status::invalid_argument(fmt::format("--memory {}: at least 16M is needed", options_.memory));
+    }
+    if (options_.threads < 0) return Status::invalid_argument("--threads must be >= 0");
+    if (options_.walkable && options_.sdf_voxel != 0.0) {
+      if (Status s = WalkableGridBuilder::check_options(options_.sdf_voxel, WalkableGridBuilder::kDefaultBandVoxels); !s) {
+        return s;
+      }
+    }
+    for (const std::string& in : options_.inputs) {
+      if (fs::exists(in) && fs::exists(options_.output) && fs::equivalent(in, options_.output)) {
+        return Status::invalid_argument(fmt::format("{}: the output would overwrite an input", in));
+      }
+    }
+    return Status::ok();
+  }
+
+  // Stage 1: every input into one spill file.
+  Status ingest(Part& root) {
+    root.path = temp_->file("ingest");
+    SpillWriter out;
+    if (Status s = out.open(root.path); !s) return s;
+    Reservoir sample(0x5eed);
+    uint64_t total_bytes = 0;
+    for (const std::string& in : options_.inputs) {
+      std::error_code ec;
+      total_bytes += fs::file_size(in, ec);
+    }
+    report_.input_bytes = total_bytes;
+    Progress progress("read", "bytes", total_bytes, options_.quiet);
+    uint64_t source_base = 0, done_bytes = 0;
+    Scene batch;
+    InputPrimitive prim;
+    for (const std::string& in : options_.inputs) {
+      auto opened = open_scene_reader(in);
+      if (!opened) return opened.status();
+      SceneReader& reader = **opened;
+      const auto material_base = static_cast<uint32_t>(info_.materials.size());
+      SceneBuilder builder(batch);
+      uint64_t local = 0, last_bytes = 0;
+      for (;;) {
+        bool end = false;
+        if (Status s = reader.next(prim, end); !s) return s;
+        if (!end) {
+          if (source_base + local >= UINT32_MAX) {
+            return Status::unsupported(fmt::format("{}: more than {} primitives in all inputs", in, UINT32_MAX - 1));
+          }
+          prim.material += material_base;
+          builder.add(prim, static_cast<uint32_t>(source_base + local));
+          ++local;
+        }
+        if (batch.size() >= kBatch || (end && batch.size() > 0)) {
+          for (uint32_t i = 0; i < batch.size(); ++i) {
+            const Aabb b = batch.prim_bounds(i);
+            bounds_.extend(b);
+            sample.offer(b.center());
+            if (Status s = out.write(batch, i); !s) return s;
+          }
+          report_.degenerate_dropped += batch.degenerate_dropped;
+          report_.primitives += batch.size();
+          report_.triangles += batch.triangles.size();
+          batch = Scene{};
+          const uint64_t now = reader.bytes_read();
+          progress.advance(now - std::min(now, last_bytes));
+          last_bytes = now;
+        }
+        if (end) break;
+      }
+      done_bytes += reader.bytes_total();
+      source_base += local;
+      const SceneHeader& h = reader.header();
+      info_.materials.insert(info_.materials.end(), h.materials.begin(), h.materials.end());
+      if (info_.materials.size() == material_base) info_.materials.emplace_back();  // meshes: one default
+      info_.lights.insert(info_.lights.end(), h.lights.begin(), h.lights.end());
+      if (!info_.camera && h.camera) {
+        info_.camera = h.camera;
+        info_.background = h.background;
+      }
+      info_.inputs.push_back(fs::path(in).filename().string());
+    }
+    progress.finish();
+    if (Status s = out.close(); !s) return s;
+    report_.spill_bytes += out.bytes();
+    report_.input_primitives = source_base;
+    if (bounds_.empty()) bounds_ = Aabb(Vec3(-1.0), Vec3(1.0));  // an empty model still makes a store
+    if (options_.codec == CellCodec::Draco) lattice_ = Lattice::covering(bounds_, options_.quant_bits);
+    const double slack = options_.codec == CellCodec::Draco ? lattice_.step : 0.0;
+    root.region = padded_root(bounds_, slack);
+    root.count = out.records();
+    root.sample = std::move(sample.points());
+    return Status::ok();
+  }
+
+  // Plans median splits of `part` from its sample until every leaf's estimate fits.
+  std::vector<PlanNode> plan(const Part& part) const {
+    std::vector<PlanNode> nodes;
+    const double per_sample = static_cast<double>(part.count) / std::max<double>(1.0, part.sample.size());
+    std::vector<Vec3> sample = part.sample;
+    struct Todo {
+      int node;
+      size_t begin, end;
+    };
+    nodes.push_back({-1, 0.0, -1, -1, -1, part.region});
+    std::vector<Todo> todo{{0, 0, sample.size()}};
+    size_t leaves = 1;
+    while (!todo.empty()) {
+      const Todo t = todo.back();
+      todo.pop_back();
+      const Aabb region = nodes[t.node].region;
+      // Straddling primitives are written to both sides: estimate 15 % on top.
+      const double estimate = 1.15 * per_sample * static_cast<double>(t.end - t.begin);
+      if (estimate <= 0.7 * static_cast<double>(capacity_) || t.end - t.begin < 64 || leaves >= kMaxFanOut) continue;
+      const Vec3 e = region.extent();
+      const int axis = e.x >= e.y && e.x >= e.z ? 0 : (e.y >= e.z ? 1 : 2);
+      const size_t mid = t.begin + (t.end - t.begin) / 2;
+      std::nth_element(sample.begin() + static_cast<ptrdiff_t>(t.begin), sample.begin() + static_cast<ptrdiff_t>(mid),
+                       sample.begin() + static_cast<ptrdiff_t>(t.end),
+                       [axis](const Vec3& a, const Vec3& b) { return a[axis] < b[axis]; });
+      double split = sample[mid][axis];
+      if (!(split > region.lo[axis] && split < region.hi[axis])) split = region.center()[axis];
+      Aabb lo = region, hi = region;
+      lo.hi[axis] = split;
+      hi.lo[axis] = split;
+      const int l = static_cast<int>(nodes.size());
+      nodes.push_back({-1, 0.0, -1, -1, -1, lo});
+      nodes.push_back({-1, 0.0, -1, -1, -1, hi});
+      nodes[t.node].axis = axis;
+      nodes[t.node].split = split;
+      nodes[t.node].lower = l;
+      nodes[t.node].upper = l + 1;
+      ++leaves;
+      size_t cut = t.begin;  // points on the lower side first
+      for (size_t i = t.begin; i < t.end; ++i) {
+        if (sample[i][axis] < split) std::swap(sample[i], sample[cut++]);
+      }
+      todo.push_back({l, t.begin, cut});
+      todo.push_back({l + 1, cut, t.end});
+    }
+    return nodes;
+  }
+
+  // Turns a part into cells: in core when it fits, else split on disk first.
+  Status process(Part part, uint32_t depth) {
+    if (part.count <= capacity_ || depth >= 16) return build_in_core(part, depth);
+    std::vector<PlanNode> nodes = plan(part);
+    if (nodes.size() == 1) return build_in_core(part, depth);
+    std::vector<Part> parts;
+    if (Status s = distribute(part, nodes, parts); !s) return s;
+    // A split that separated nothing (everything straddles) would recurse forever.
+    bool progress = false;
+    for (const Part& p : parts) progress |= p.count < part.count;
+    std::error_code ec;
+    fs::remove(part.path, ec);
+    return emit(nodes, 0, parts, depth, progress);
+  }
+
+  // Appends the plan's node `n` (preorder) and builds its leaves.
+  Status emit(const std::vector<PlanNode>& nodes, int n, std::vector<Part>& parts, uint32_t depth, bool progress) {
+    const PlanNode& p = nodes[static_cast<size_t>(n)];
+    if (p.axis < 0) {
+      Part& part = parts[static_cast<size_t>(p.part)];
+      return progress ? process(std::move(part), depth) : build_in_core(part, depth);
+    }
+    const size_t index = nodes_.size();
+    nodes_.push_back({});
+    if (Status s = emit(nodes, p.lower, parts, depth + 1, progress); !s) return s;
+    const auto upper = static_cast<uint32_t>(nodes_.size());
+    if (Status s = emit(nodes, p.upper, parts, depth + 1, progress); !s) return s;
+    nodes_[index] = {p.split, static_cast<uint32_t>(p.axis), upper};
+    return Status::ok();
+  }
+
+  // Stage 3: one pass writes every primitive of `part` to each planned leaf it overlaps.
+  Status distribute(const Part& part, std::vector<PlanNode>& nodes, std::vector<Part>& parts) {
+    std::vector<std::unique_ptr<SpillWriter>> writers;
+    std::vector<Reservoir> samples;
+    // The part buffers together take at most a quarter of the budget.
+    size_t leaves = 0;
+    for (const PlanNode& n : nodes) leaves += n.axis < 0 ? 1 : 0;
+    const size_t buffer = std::clamp<size_t>(options_.memory / 4 / std::max<size_t>(leaves, 1), 64 << 10, kPartBuffer);
+    for (PlanNode& n : nodes) {
+      if (n.axis >= 0) continue;
+      n.part = static_cast<int>(parts.size());
+      Part p;
+      p.path = temp_->file(fmt::format("part-{}", next_file_++));
+      p.region = n.region;
+      parts.push_back(std::move(p));
+      writers.push_back(std::make_unique<SpillWriter>(buffer));
+      if (Status s = writers.back()->open(parts.back().path); !s) return s;
+      samples.emplace_back(0x5eed + parts.size());
+    }
+    const auto t = std::chrono::steady_clock::now();
+    SpillReader in;
+    if (Status s = in.open(part.path); !s) return s;
+    const double scale = glm::length(part.region.extent());
+    const double eps = 2e-9 * scale + 1e-12 * std::max(1.0, part.region.magnitude());
+    Scene batch;
+    std::vector<int> stack;
+    Progress progress("partition", "primitives", part.count, options_.quiet);
+    for (bool end = false; !end;) {
+      batch = Scene{};
+      if (Status s = in.read(batch, kBatch, end); !s) return s;
+      snap(batch);
+      for (uint32_t i = 0; i < batch.size(); ++i) {
+        Aabb b = batch.prim_bounds(i);
+        if (b.empty()) continue;  // dropped by snapping
+        b.lo -= Vec3(eps);
+        b.hi += Vec3(eps);
+        stack.assign(1, 0);
+        while (!stack.empty()) {
+          const PlanNode& n = nodes[static_cast<size_t>(stack.back())];
+          stack.pop_back();
+          if (n.axis < 0) {
+            const auto k = static_cast<size_t>(n.part);
+            if (Status s = writers[k]->write(batch, i); !s) return s;
+            samples[k].offer(b.center());
+            continue;
+          }
+          if (b.lo[n.axis] <= n.split) stack.push_back(n.lower);
+          if (b.hi[n.axis] >= n.split) stack.push_back(n.upper);
+        }
+      }
+      progress.advance(batch.size());
+    }
+    progress.finish();
+    for (size_t k = 0; k < parts.size(); ++k) {
+      if (Status s = writers[k]->close(); !s) return s;
+      parts[k].count = writers[k]->records();
+      parts[k].sample = std::move(samples[k].points());
+      report_.spill_bytes += writers[k]->bytes();
+    }
+    report_.spill_seconds += seconds_since(t);
+    return Status::ok();
+  }
+
+  // Snaps triangles to the lattice (Draco) and drops those that lose their area; spheres and
+  // other shapes are stored exactly.
+  void snap(Scene& batch) {
+    if (options_.codec != CellCodec::Draco || batch.triangles.empty()) return;
+    Scene kept;
+    kept.triangle_normals.reserve(batch.triangle_normals.size());
+    for (uint32_t i = 0; i < batch.size(); ++i) {
+      const PrimRef& p = batch.prims[i];
+      if (p.kind != PrimKind::Triangle) {
+        kept.add_from(batch, i);
+        continue;
+      }
+      const Triangle& t = batch.triangles[p.index];
+      const Triangle s{lattice_.snap(t.v0), lattice_.snap(t.v1), lattice_.snap(t.v2)};
+      if (zero_area(s)) {
+        ++snapped_away_;
+        continue;
+      }
+      kept.add_triangle(s, p.source, p.material,
+                        batch.triangle_normals.empty() ? nullptr : &batch.triangle_normals[p.index]);
+    }
+    batch = std::move(kept);
+  }
+
+  // Stage 4: one part in core -> cells -> pages.
+  Status build_in_core(const Part& part, uint32_t depth) {
+    auto t = std::chrono::steady_clock::now();
+    Scene scene;
+    {
+      SpillReader in;
+      if (Status s = in.open(part.path); !s) return s;
+      Scene batch;
+      for (bool end = false; !end;) {
+        batch = Scene{};
+        if (Status s = in.read(batch, kBatch, end); !s) return s;
+        snap(batch);
+        for (uint32_t i = 0; i < batch.size(); ++i) scene.add_from(batch, i);
+      }
+    }
+    std::error_code ec;
+    fs::remove(part.path, ec);
+    ++report_.parts;
+
+    KdBuildOptions kd;
+    kd.max_cell_prims = options_.cell_prims;
+    kd.min_cell_prims = options_.cell_prims;
+    kd.root = part.region;
+    const KdTree tree = KdTree::build(scene, kd);
+    report_.build_seconds += seconds_since(t);
+    report_.depth = std::max(report_.depth, depth + tree.depth());
+
+    if (grid_) {
+      if (Status s = grid_->add_partition(scene, part.region); !s) return s;
+    }
+
+    // Graft the part's tree: its node and cell indices move by what precedes them.
+    const auto node_base = static_cast<uint32_t>(nodes_.size());
+    const auto cell_base = static_cast<uint32_t>(cells_.size());
+    for (KdTree::Node n : tree.nodes()) {
+      n.child += n.is_leaf() ? cell_base : node_base;
+      nodes_.push_back(n);
+    }
+
+    t = std::chrono::steady_clock::now();
+    const auto& cells = tree.cells();
+    CellCodecOptions codec;
+    codec.codec = options_.codec;
+    codec.lattice = lattice_;
+    if (const char* s = std::getenv("FRONTIER_DRACO_SPEED")) codec.draco_speed = std::atoi(s);
+    std::vector<Result<EncodedCell>> encoded;
+    for (size_t first = 0; first < cells.size(); first += kEncodeChunk) {
+      const size_t last = std::min(cells.size(), first + kEncodeChunk);
+      encoded.assign(last - first, Result<EncodedCell>(Status::ok()));
+      arena_->execute([&] {
+        tbb::parallel_for(first, last, [&](size_t c) {
+          const KdTree::Cell& cell = cells[c];
+          if (cell.count == 0) return;
+          Scene local;
+          for (uint32_t r = cell.first; r < cell.first + cell.count; ++r) local.add_from(scene, tree.ref(r));
+          Result<EncodedCell> e = encode_cell(local, codec);
+          if (!e && codec.codec == CellCodec::Draco && e.status().code() == Status::Code::InvalidArgument) {
+            // Draco refuses cells spanning 2^24 lattice steps or more (its entropy coder's tables
+            // grow with the span; see cell_codec.h): such a cell is stored raw, still on the lattice.
+            CellCodecOptions raw = codec;
+            raw.codec = CellCodec::Raw;
+            e = encode_cell(local, raw);
+          }
+          encoded[c - first] = std::move(e);
+        });
+      });
+      for (size_t c = first; c < last; ++c) {
+        StoreCell record;
+        record.bounds = cells[c].bounds;
+        record.content = cells[c].content;
+        if (cells[c].count > 0) {
+          Result<EncodedCell>& e = encoded[c - first];
+          if (!e) return e.status();
+          auto page = writer_->add_page(static_cast<uint8_t>(e->codec), e->payload);
+          if (!page) return page.status();
+          record.page = *page;
+          record.references = static_cast<uint32_t>(e->decoded.size());
+          report_.page_bytes += e->payload.size();
+          ++report_.pages;
+          if (record.references == 0) record.page = StoreCell::kNoPage;  // everything dropped
+        }
+        report_.references += record.references;
+        cells_.push_back(record);
+      }
+    }
+    report_.encode_seconds += seconds_since(t);
+    // Straddling primitives are counted in every part: never report more than the total.
+    build_progress_->advance(std::min(part.count, root_count_ - std::min(root_count_, build_progress_->done())));
+    return Status::ok();
+  }
+
+  // Stage 5: sections and footer.
+  Status finish() {
+    report_.degenerate_dropped += snapped_away_;
+    report_.cells = cells_.size();
+    info_.codec = options_.codec;
+    info_.lattice = lattice_;
+    info_.bounds = root_region();
+    info_.input_primitives = report_.input_primitives;
+    info_.primitives = report_.primitives - snapped_away_;
+    info_.references = report_.references;
+    info_.triangles = report_.triangles - snapped_away_;
+    info_.degenerate_dropped = report_.degenerate_dropped;
+    info_.cell_prims = options_.cell_prims;
+    if (grid_) {
+      auto bytes = grid_->finish();
+      if (!bytes) return bytes.status();
+      if (Status s = writer_->add_section(kSdfSection, *bytes); !s) return s;
+      info_.walkable = true;
+    }
+    if (Status s = writer_->add_section(kModelSection, info_.to_bytes()); !s) return s;
+    if (Status s = writer_->add_section(kTreeSection, encode_tree(nodes_)); !s) return s;
+    if (Status s = writer_->add_section(kCellsSection, encode_cells(cells_)); !s) return s;
+    if (Status s = writer_->finish(); !s) return s;
+    report_.store_bytes = writer_->bytes_written();
+    std::error_code ec;
+    report_.store_bytes = fs::file_size(options_.output, ec);
+    return Status::ok();
+  }
+
+  Aabb root_region() const {
+    const double slack = options_.codec == CellCodec::Draco ? lattice_.step : 0.0;
+    return padded_root(bounds_, slack);
+  }
+
+  const BuildOptions& options_;
+  std::optional<TempDir> temp_;  // declared first: removed last, after the writer
+  std::unique_ptr<store::StoreWriter> writer_;
+  std::optional<tbb::task_arena> arena_;
+  std::optional<Progress> build_progress_;
+  std::optional<WalkableGridBuilder> grid_;
+  Aabb bounds_;
+  Lattice lattice_;
+  uint64_t capacity_ = 0;
+  uint64_t root_count_ = 0;
+  uint64_t snapped_away_ = 0;
+  int next_file_ = 0;
+  StoreModelInfo info_;
+  std::vector<KdTree::Node> nodes_;
+  std::vector<StoreCell> cells_;
+  BuildReport report_;
+};
+
+}  // namespace
+
+Result<BuildReport> build_store(const BuildOptions& options) {
+  StoreBuilder builder(options);
+  return builder.run();
+}
+
+}  // namespace frontier

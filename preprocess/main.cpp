@@ -1,0 +1,84 @@
+// frontier-build: streams model files into one store file in bounded memory (preprocess/build.h).
+#include "preprocess/build.h"
+#include "src/progress.h"
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+
+namespace {
+
+// A data_gen sidecar (MODEL.json beside MODEL) saying "walkable": true asks for the collision
+// grid. Only its head is read: the flag comes first, and sidecars of huge buildings are large.
+bool sidecar_says_walkable(const std::string& input) {
+  std::filesystem::path side(input);
+  side.replace_extension(".json");
+  std::ifstream in(side);
+  if (!in) return false;
+  std::string head(8192, '\0');
+  in.read(head.data(), static_cast<std::streamsize>(head.size()));
+  head.resize(static_cast<size_t>(in.gcount()));
+  return std::regex_search(head, std::regex(R"("walkable"\s*:\s*true)"));
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "frontier-build: stream PLY/OBJ/OFF/NFF models into one paged, compressed, checksummed k-d tree store.\n"
+      "Memory stays within --memory (plus buffers): parts of the model that do not fit are split on disk\n"
+      "first. The store appears atomically (OUT.tmp, fsync, rename); a failed build leaves no OUT.",
+      "frontier-build"};
+  frontier::BuildOptions options;
+  std::string memory = "1G", codec = "draco";
+  app.add_option("inputs", options.inputs, "model files (.ply .obj .off .nff); several go into one store")
+      ->required()
+      ->check(CLI::ExistingFile);
+  app.add_option("-o,--output", options.output, "the store file to write")->required();
+  app.add_option("--memory", memory, "memory budget for the build, e.g. 512M, 1G (default 1G)");
+  app.add_option("--codec", codec, "cell page codec: draco (default) or raw (exact doubles)")
+      ->check(CLI::IsMember({"draco", "raw"}));
+  app.add_option("--quant-bits", options.quant_bits, "bits per axis of the global position lattice (Draco), 8..30")
+      ->default_val(16);
+  app.add_option("--cell-prims", options.cell_prims, "at most this many primitives per cell page")->default_val(1024);
+  app.add_option("--threads", options.threads, "encoding threads (0: all cores)")->default_val(0);
+  app.add_flag("--walkable", options.walkable,
+               "add a sparse OpenVDB distance grid for walk-mode collision (also when a MODEL.json sidecar "
+               "says \"walkable\": true)");
+  app.add_option("--sdf-voxel", options.sdf_voxel, "voxel size of the collision grid (default: from the model size)");
+  app.add_flag("-q,--quiet", options.quiet, "no progress output");
+  CLI11_PARSE(app, argc, argv);
+
+  const auto bytes = frontier::parse_byte_size(memory);
+  if (!bytes) {
+    std::fprintf(stderr, "frontier-build: --memory %s: not a size (try 512M or 2G)\n", memory.c_str());
+    return 2;
+  }
+  options.memory = *bytes;
+  options.codec = codec == "raw" ? frontier::CellCodec::Raw : frontier::CellCodec::Draco;
+  for (const std::string& in : options.inputs) options.walkable = options.walkable || sidecar_says_walkable(in);
+
+  auto report = frontier::build_store(options);
+  if (!report) {
+    std::fprintf(stderr, "frontier-build: %s\n", report.status().to_string().c_str());
+    return report.status().code() == frontier::Status::Code::InvalidArgument ? 2 : 1;
+  }
+  const frontier::BuildReport& r = *report;
+  if (!options.quiet) {
+    const double per_tri = r.triangles > 0 ? static_cast<double>(r.store_bytes) / static_cast<double>(r.triangles) : 0.0;
+    std::fprintf(stderr, "%s",
+                 fmt::format("{}: {} primitives ({} triangles, {} dropped) in {} cells, {} pages, depth {}\n"
+                             "  {:.1f} MB, {:.2f} bytes/triangle; {} parts built in core; {:.1f} s "
+                             "({} primitives/s): read {:.1f} s, partition {:.1f} s, build {:.1f} s, encode {:.1f} s\n",
+                             options.output, r.primitives, r.triangles, r.degenerate_dropped, r.cells, r.pages,
+                             r.depth, static_cast<double>(r.store_bytes) / 1e6, per_tri, r.parts, r.seconds,
+                             frontier::human_count(static_cast<double>(r.primitives) / std::max(r.seconds, 1e-9)),
+                             r.ingest_seconds, r.spill_seconds, r.build_seconds, r.encode_seconds)
+                     .c_str());
+  }
+  return 0;
+}

@@ -1,0 +1,153 @@
+// Preprocessing throughput against the I/O floor, bytes per triangle and page decode speed.
+//
+// For each model: the I/O floor measured in the same run (read the input once from a cold page
+// cache + write and fsync a file of the store's size), then frontier-build's end-to-end time
+// (triangles/s and the ratio to the floor), store bytes per triangle, and the decode speed of
+// every page (pages read into memory first, so only decoding is timed). Prints Markdown.
+#include "preprocess/build.h"
+#include "src/store_model.h"
+
+#include <CLI/CLI.hpp>
+#include <fmt/core.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <vector>
+
+#include <fcntl.h>
+#include <unistd.h>
+
+using namespace frontier;
+
+namespace {
+
+double since(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
+
+// Drops a file from the OS page cache so that the next read goes to the disk.
+void drop_cache(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY);
+  if (fd < 0) return;
+  ::fdatasync(fd);
+  ::posix_fadvise(fd, 0, 0, POSIX_FADV_DONTNEED);
+  ::close(fd);
+}
+
+// Seconds to read `input` once (cold) and to write + fsync `bytes` bytes beside `output`.
+double io_floor(const std::vector<std::string>& inputs, const std::string& output, uint64_t bytes) {
+  std::vector<char> buffer(8 << 20);
+  const auto t = std::chrono::steady_clock::now();
+  for (const std::string& input : inputs) {
+    drop_cache(input);
+    const int fd = ::open(input.c_str(), O_RDONLY);
+    while (fd >= 0 && ::read(fd, buffer.data(), buffer.size()) > 0) {
+    }
+    if (fd >= 0) ::close(fd);
+  }
+  const std::string scratch = output + ".floor";
+  const int out = ::open(scratch.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  for (uint64_t left = bytes; out >= 0 && left > 0;) {
+    const auto n = static_cast<size_t>(std::min<uint64_t>(left, buffer.size()));
+    if (::write(out, buffer.data(), n) != static_cast<ssize_t>(n)) break;
+    left -= n;
+  }
+  if (out >= 0) {
+    ::fsync(out);
+    ::close(out);
+  }
+  const double s = since(t);
+  std::filesystem::remove(scratch);
+  return s;
+}
+
+struct Decode {
+  double seconds = 0.0;
+  uint64_t payload_bytes = 0, primitives = 0;
+};
+
+Decode decode_all(const std::string& store) {
+  Decode d;
+  auto model = StoreModel::open(store);
+  if (!model) {
+    std::fprintf(stderr, "%s\n", model.status().to_string().c_str());
+    return d;
+  }
+  std::vector<store::OwnedPage> pages;
+  for (const StoreCell& c : (*model)->cells()) {
+    if (c.page == StoreCell::kNoPage) continue;
+    auto p = (*model)->reader().read_page(c.page);
+    if (p) pages.push_back(std::move(*p));
+  }
+  Scene cell;
+  const auto t = std::chrono::steady_clock::now();
+  for (const store::OwnedPage& p : pages) {
+    if (decode_cell(p.payload, static_cast<CellCodec>(p.codec), (*model)->info().lattice, cell)) {
+      d.primitives += cell.size();
+    }
+    d.payload_bytes += p.payload.size();
+  }
+  d.seconds = since(t);
+  return d;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"bench_build: frontier-build throughput against the I/O floor, bytes/triangle, page decode speed"};
+  std::vector<std::string> models;
+  std::vector<int> bits = {16};
+  std::vector<std::string> codecs = {"draco"};
+  std::string memory = "1G", output = "bench_build.frontier";
+  int threads = 2;
+  app.add_option("models", models, "model files (binary PLY from frontier-gen, ...)")->required();
+  app.add_option("--bits", bits, "lattice bits to measure (Draco)");
+  app.add_option("--codecs", codecs, "codecs to measure: draco, raw");
+  app.add_option("--memory", memory, "build memory budget");
+  app.add_option("--threads", threads, "build threads");
+  app.add_option("-o,--output", output, "scratch store path (removed at the end)");
+  CLI11_PARSE(app, argc, argv);
+
+  std::printf("| model | codec | bits | triangles | build s | Mtri/s | I/O floor s | build/floor | MB | bytes/tri | "
+              "decode MB/s | decode Mtri/s |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+  for (const std::string& model : models) {
+    for (const std::string& codec : codecs) {
+      for (const int b : bits) {
+        if (codec == "raw" && b != bits.front()) continue;
+        BuildOptions o;
+        o.inputs = {model};
+        o.output = output;
+        o.codec = codec == "raw" ? CellCodec::Raw : CellCodec::Draco;
+        o.quant_bits = b;
+        o.threads = threads;
+        o.quiet = true;
+        o.memory = parse_byte_size(memory).value_or(uint64_t{1} << 30);
+        drop_cache(model);
+        const auto t = std::chrono::steady_clock::now();
+        auto report = build_store(o);
+        const double build_s = since(t);
+        if (!report) {
+          std::fprintf(stderr, "%s\n", report.status().to_string().c_str());
+          return 1;
+        }
+        const double floor_s = io_floor({model}, output, report->store_bytes);
+        const Decode d = decode_all(output);
+        const double tris = static_cast<double>(report->triangles);
+        std::printf("| %s | %s | %d | %.0f | %.2f | %.2f | %.2f | %.1f | %.1f | %.2f | %.0f | %.1f |\n",
+                    std::filesystem::path(model).filename().c_str(), codec.c_str(), codec == "raw" ? 0 : b, tris,
+                    build_s, tris / build_s / 1e6, floor_s, build_s / floor_s,
+                    static_cast<double>(report->store_bytes) / 1e6,
+                    static_cast<double>(report->store_bytes) / std::max(tris, 1.0),
+                    static_cast<double>(d.payload_bytes) / 1e6 / std::max(d.seconds, 1e-9),
+                    static_cast<double>(d.primitives) / 1e6 / std::max(d.seconds, 1e-9));
+        std::fprintf(stderr, "  %s: read %.1f s, partition %.1f s, build %.1f s, encode %.1f s; %llu parts\n",
+                     model.c_str(), report->ingest_seconds, report->spill_seconds, report->build_seconds,
+                     report->encode_seconds, static_cast<unsigned long long>(report->parts));
+        std::fflush(stdout);
+        std::filesystem::remove(output);
+      }
+    }
+  }
+  return 0;
+}
