@@ -158,8 +158,11 @@ class StoreBuilder {
                     : std::max<uint64_t>(options_.memory / kBytesPerPrimitive, 4ull * options_.cell_prims);
     if (options_.walkable) {
       const double voxel = options_.sdf_voxel > 0.0 ? options_.sdf_voxel : WalkableGridBuilder::default_voxel_size(bounds_);
-      grid_.emplace(voxel);
+      const int band = WalkableGridBuilder::band_voxels_for_radius(options_.walk_radius, voxel);
+      if (Status s = WalkableGridBuilder::check_options(voxel, band); !s) return s;
+      grid_.emplace(voxel, band);
       info_.sdf_voxel = voxel;
+      info_.walk_radius = options_.walk_radius;
     }
     root_count_ = root.count;
     build_progress_.emplace("build", "primitives", root.count, options_.quiet);
@@ -183,6 +186,9 @@ class StoreBuilder {
       return Status::invalid_argument(fmt::format("--memory {}: at least 16M is needed", options_.memory));
     }
     if (options_.threads < 0) return Status::invalid_argument("--threads must be >= 0");
+    if (options_.walkable && !(options_.walk_radius > 0.0 && std::isfinite(options_.walk_radius))) {
+      return Status::invalid_argument("--walk-radius must be positive");
+    }
     if (options_.walkable && options_.sdf_voxel != 0.0) {
       if (Status s = WalkableGridBuilder::check_options(options_.sdf_voxel, WalkableGridBuilder::kDefaultBandVoxels); !s) {
         return s;
@@ -546,6 +552,8 @@ class StoreBuilder {
       auto bytes = grid_->finish();
       if (!bytes) return bytes.status();
       if (Status s = writer_->add_section(kSdfSection, *bytes); !s) return s;
+      report_.sdf_bytes = bytes->size();
+      report_.sdf_memory = grid_->memory_bytes();
       info_.walkable = true;
     }
     if (Status s = writer_->add_section(kModelSection, info_.to_bytes()); !s) return s;

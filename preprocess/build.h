@@ -40,6 +40,7 @@ struct BuildOptions {
   int threads = 0;                      // 0: all cores
   bool walkable = false;
   double sdf_voxel = 0.0;               // 0: chosen from the model's extent
+  double walk_radius = 0.25;            // the walker's clearance; the grid's band is wider
   bool quiet = false;
   // Most primitives built in core at once; 0 derives it from `memory` (kBytesPerPrimitive).
   // Tests set it to force the out-of-core path on small models.
@@ -60,6 +61,8 @@ struct BuildReport {
   uint64_t store_bytes = 0;
   uint64_t spill_bytes = 0;             // written to temporary files
   uint64_t page_bytes = 0;              // payloads of all pages
+  uint64_t sdf_bytes = 0;               // the collision grid section (--walkable)
+  uint64_t sdf_memory = 0;              // memory the grid held at the end of the build
   double seconds = 0.0;
   double ingest_seconds = 0.0, spill_seconds = 0.0, build_seconds = 0.0, encode_seconds = 0.0;
 };

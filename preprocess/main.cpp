@@ -50,6 +50,8 @@ int main(int argc, char** argv) {
                "add a sparse OpenVDB distance grid for walk-mode collision (also when a MODEL.json sidecar "
                "says \"walkable\": true)");
   app.add_option("--sdf-voxel", options.sdf_voxel, "voxel size of the collision grid (default: from the model size)");
+  app.add_option("--walk-radius", options.walk_radius,
+                 "walker clearance the collision grid must resolve (default 0.25, model units)");
   app.add_flag("-q,--quiet", options.quiet, "no progress output");
   CLI11_PARSE(app, argc, argv);
 
@@ -79,6 +81,11 @@ int main(int argc, char** argv) {
                              frontier::human_count(static_cast<double>(r.primitives) / std::max(r.seconds, 1e-9)),
                              r.ingest_seconds, r.spill_seconds, r.build_seconds, r.encode_seconds)
                      .c_str());
+    if (options.walkable) {
+      std::fprintf(stderr, "  collision grid: %.1f MB in the store, %.1f MB in memory%s\n",
+                   static_cast<double>(r.sdf_bytes) / 1e6, static_cast<double>(r.sdf_memory) / 1e6,
+                   r.sdf_memory > options.memory ? " (more than --memory: the grid is not paged yet)" : "");
+    }
   }
   return 0;
 }

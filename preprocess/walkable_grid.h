@@ -74,9 +74,9 @@ class WalkableGridBuilder {
   // 1 <= band_voxels <= 64.
   static Status check_options(double voxel_size, int band_voxels);
 
-  // 5 cm assuming metres, bounded to 512..4096 voxels along the model's longest side so that the
+  // 10 cm assuming metres, bounded to 256..4096 voxels along the model's longest side so that the
   // grid stays small for a campus and fine enough for a single room (longest side L:
-  // clamp(0.05, L / 4096, L / 512)); 0.05 for an empty or flat-as-a-point model.
+  // clamp(0.1, L / 4096, L / 256)); 0.1 for an empty or flat-as-a-point model.
   static double default_voxel_size(const Aabb& model_bounds);
 
   // The smallest band (>= kDefaultBandVoxels, <= 64) at least one voxel wider than `radius`,

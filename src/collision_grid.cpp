@@ -11,6 +11,7 @@
 
 #include <atomic>
 #include <cassert>
+#include <cmath>
 #include <cstring>
 #include <exception>
 #include <mutex>
@@ -52,6 +53,7 @@ constexpr double kContactSlack = 1e-3;      // how far past radius a push-out ai
 constexpr double kNoProgress = 1e-4;        // progress below this (voxels) ends a walk
 constexpr int kMaxPushes = 40;              // push-out moves per blocked step
 constexpr int kMaxMoves = 100000;           // hard cap on steps per resolve()
+constexpr double kMaxIndex = double(1 << 30);  // no voxel lies farther from the grid origin
 
 }  // namespace
 
@@ -66,6 +68,10 @@ struct CollisionGrid::Impl {
   // or a walk cheap.
   double sample(ConstAccessor& acc, const Vec3& p) const {
     const openvdb::Vec3d index = grid->transform().worldToIndex(openvdb::Vec3d(p.x, p.y, p.z));
+    // NaN or beyond any grid (the builder keeps within 2^30 voxels): far, and no int overflow.
+    for (int a = 0; a < 3; ++a) {
+      if (!(std::abs(index[a]) < kMaxIndex)) return far;
+    }
     const double d = openvdb::tools::BoxSampler::sample(acc, index);
     return std::clamp(d, 0.0, far);
   }
@@ -103,6 +109,10 @@ struct CollisionGrid::Impl {
   }
 
   Vec3 resolve(const Vec3& from, const Vec3& to, double radius) const {
+    const auto finite = [](const Vec3& v) {
+      return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+    };
+    if (!finite(from) || !finite(to)) return from;  // a caller's bug; never walk into NaN
     ConstAccessor acc(grid->tree());
     Vec3 pos = from;
     double d = sample(acc, pos);

@@ -80,6 +80,7 @@ std::vector<uint8_t> StoreModelInfo::to_bytes() const {
   j["background"] = vec_json(background);
   j["walkable"] = walkable;
   j["sdf_voxel"] = sdf_voxel;
+  j["walk_radius"] = walk_radius;
   const std::string text = j.dump(1);
   return {text.begin(), text.end()};
 }
@@ -143,6 +144,7 @@ Result<StoreModelInfo> StoreModelInfo::from_bytes(std::span<const uint8_t> bytes
     info.background = json_vec(j.at("background"));
     info.walkable = j.at("walkable").get<bool>();
     info.sdf_voxel = j.at("sdf_voxel").get<double>();
+    info.walk_radius = j.at("walk_radius").get<double>();
   } catch (const std::exception& e) {
     return Status::corruption(fmt::format("{}: model section: {}", where, e.what()));
   }

@@ -54,6 +54,7 @@ struct StoreModelInfo {
   Vec3 background{0.0};
   bool walkable = false;              // an `sdf` section exists
   double sdf_voxel = 0.0;
+  double walk_radius = 0.0;           // the walker clearance the grid's band was sized for
 
   std::vector<uint8_t> to_bytes() const;
   static Result<StoreModelInfo> from_bytes(std::span<const uint8_t> bytes, const std::string& where);

@@ -6,12 +6,25 @@
 
 #include <gtest/gtest.h>
 #include <openvdb/openvdb.h>
+#if defined(__SANITIZE_ADDRESS__)
+#define FRONTIER_TEST_ASAN 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define FRONTIER_TEST_ASAN 1
+#endif
+#endif
+#if defined(FRONTIER_TEST_ASAN)
+#include <sanitizer/lsan_interface.h>
+#endif
 #include <openvdb/io/Stream.h>
 
 #include <algorithm>
+#include <atomic>
+#include <cmath>
 #include <random>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 namespace frontier {
@@ -186,6 +199,9 @@ TEST(WalkableGridDistance, KnownPointsNearWallsWithinAVoxel) {
   // Farther than the band, and far from the model: the band width.
   EXPECT_EQ(grid.distance({2.0, 1.5, 1.25}), grid.band_width());
   EXPECT_EQ(grid.distance({1e6, -1e6, 3.0}), grid.band_width());
+  EXPECT_EQ(grid.distance({1e300, 0.0, 0.0}), grid.band_width());
+  EXPECT_EQ(grid.distance({std::nan(""), 1.0, 1.0}), grid.band_width());
+  EXPECT_EQ(grid.resolve({2.0, 1.5, 1.25}, {std::nan(""), 1.5, 1.25}, 0.1), Vec3(2.0, 1.5, 1.25));
   // Curved primitives: a ball's distance is |p - c| - r within the tessellation + voxel error.
   Scene ball;
   ball.add_sphere(Sphere{Vec3(0.3, -0.2, 0.5), 0.4}, 0, 0);
@@ -357,11 +373,11 @@ TEST(WalkableGridResolve, RadiusMustFitTheBand) {
 }
 
 TEST(WalkableGridOptions, DefaultVoxelSizeFollowsTheModel) {
-  EXPECT_DOUBLE_EQ(WalkableGridBuilder::default_voxel_size(Aabb(Vec3(0.0), Vec3(100, 60, 30))), 0.05);
-  EXPECT_DOUBLE_EQ(WalkableGridBuilder::default_voxel_size(Aabb(Vec3(0.0), Vec3(10, 6, 3))), 10.0 / 512);
+  EXPECT_DOUBLE_EQ(WalkableGridBuilder::default_voxel_size(Aabb(Vec3(0.0), Vec3(100, 60, 30))), 0.1);
+  EXPECT_DOUBLE_EQ(WalkableGridBuilder::default_voxel_size(Aabb(Vec3(0.0), Vec3(10, 6, 3))), 10.0 / 256);
   EXPECT_DOUBLE_EQ(WalkableGridBuilder::default_voxel_size(Aabb(Vec3(0.0), Vec3(2000, 50, 30))),
                    2000.0 / 4096);
-  EXPECT_DOUBLE_EQ(WalkableGridBuilder::default_voxel_size(Aabb()), 0.05);
+  EXPECT_DOUBLE_EQ(WalkableGridBuilder::default_voxel_size(Aabb()), 0.1);
   EXPECT_TRUE(WalkableGridBuilder::check_options(0.05, 3).is_ok());
   EXPECT_FALSE(WalkableGridBuilder::check_options(0.0, 3).is_ok());
   EXPECT_FALSE(WalkableGridBuilder::check_options(-1.0, 3).is_ok());
@@ -463,10 +479,35 @@ TEST(WalkableGridFormat, GarbageBehindAValidChecksumIsCorruption) {
     payloads.emplace_back(str.begin(), str.end());
   }
   for (size_t i = 0; i < payloads.size(); ++i) {
+#if defined(FRONTIER_TEST_ASAN)
+    // OpenVDB 10's RootNode::readTopology leaks the child it was reading when the stream ends
+    // inside it (the truncated payload); not ours, and unreachable without a forged checksum.
+    __lsan::ScopedDisabler openvdb_leaks_on_truncated_streams;
+#endif
     const Result<CollisionGrid> r = CollisionGrid::load(sdf_format::frame(payloads[i]));
     ASSERT_FALSE(r.is_ok()) << i;
     EXPECT_EQ(r.status().code(), Status::Code::Corruption) << i << " " << r.status().to_string();
   }
+}
+
+TEST(WalkableGridQueries, ConcurrentQueriesAgreeAndAreAllCounted) {
+  Scene s;
+  add_room(s, kRoom);
+  const CollisionGrid grid = load_ok(build_one_shot(s));
+  const std::vector<Vec3> probes = probe_points();
+  std::vector<double> expected;
+  for (const Vec3& p : probes) expected.push_back(grid.distance(p));
+  const uint64_t before = grid.queries();
+  std::vector<std::thread> threads;
+  std::atomic<int> mismatches{0};
+  for (int t = 0; t < 4; ++t) {
+    threads.emplace_back([&] {
+      for (size_t i = 0; i < probes.size(); ++i) mismatches += grid.distance(probes[i]) != expected[i];
+    });
+  }
+  for (std::thread& t : threads) t.join();
+  EXPECT_EQ(mismatches.load(), 0);
+  EXPECT_EQ(grid.queries() - before, 4 * probes.size());
 }
 
 TEST(WalkableGridQueries, EveryPublicQueryCountsOnce) {
@@ -485,6 +526,22 @@ TEST(WalkableGridQueries, EveryPublicQueryCountsOnce) {
   EXPECT_EQ(grid.queries(), 3u);
   (void)grid.resolve({2.0, 1.5, 1.25}, {6.0, 1.5, 1.25}, 0.1);  // many samples, one query
   EXPECT_EQ(grid.queries(), 4u);
+}
+
+TEST(WalkableGridBuild, QuadricsBecomeTheirBoundingBoxes) {
+  // A sphere written as a quadric: x^2 + y^2 + z^2 - 0.25 = 0, bounds [-0.5, 0.5]^3.
+  Scene s;
+  Quadric q;
+  q.coeff = {1, 1, 1, 0, 0, 0, 0, 0, 0, -0.25};
+  q.bounds = Aabb(Vec3(-0.5), Vec3(0.5));
+  s.add_quadric(q, 0, 0);
+  WalkableGridBuilder builder(kVoxel);
+  ASSERT_TRUE(builder.add_partition(s, s.bounds()).is_ok());
+  EXPECT_EQ(builder.stats().quadrics_as_boxes, 1u);
+  const CollisionGrid grid = load_ok(builder.finish().value());
+  // Conservative: a corner of the box is "surface" although the sphere is 0.37 away from it.
+  EXPECT_NEAR(grid.distance(Vec3(0.55, 0.55, 0.55)), std::sqrt(3.0) * 0.05, 0.5 * kVoxel);
+  EXPECT_NEAR(grid.distance(Vec3(0.6, 0.0, 0.0)), 0.1, 0.5 * kVoxel);
 }
 
 TEST(WalkableGridBuild, EmptyPartitionsAndEmptyModels) {
