@@ -5,6 +5,7 @@
 // (triangles/s and the ratio to the floor), store bytes per triangle, and the decode speed of
 // every page (pages read into memory first, so only decoding is timed). Prints Markdown.
 #include "preprocess/build.h"
+#include "src/progress.h"
 #include "src/store_model.h"
 
 #include <CLI/CLI.hpp>
