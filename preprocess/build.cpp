@@ -93,21 +93,6 @@ class TempDir {
   std::string path_;
 };
 
-Aabb padded_root(const Aabb& bounds, double extra) {
-  const double scale = std::max(glm::length(bounds.extent()), 1e-300);
-  const double eps = extra + 2e-9 * scale + 1e-12 * std::max(1.0, bounds.magnitude());
-  Aabb r = bounds;
-  r.lo -= Vec3(eps);
-  r.hi += Vec3(eps);
-  for (int a = 0; a < 3; ++a) {
-    if (r.hi[a] - r.lo[a] <= 1e-9 * scale) {
-      r.lo[a] -= 1e-6 * scale;
-      r.hi[a] += 1e-6 * scale;
-    }
-  }
-  return r;
-}
-
 // Zero-area triangles (after snapping to the lattice) are dropped like the readers drop them.
 bool zero_area(const Triangle& t) {
   const Vec3 n = glm::cross(t.v1 - t.v0, t.v2 - t.v0);
@@ -215,7 +200,7 @@ class StoreBuilder {
     }
     report_.input_bytes = total_bytes;
     Progress progress("read", "bytes", total_bytes, options_.quiet);
-    uint64_t source_base = 0, done_bytes = 0;
+    uint64_t source_base = 0;
     Scene batch;
     InputPrimitive prim;
     for (const std::string& in : options_.inputs) {
@@ -253,7 +238,6 @@ class StoreBuilder {
         }
         if (end) break;
       }
-      done_bytes += reader.bytes_total();
       source_base += local;
       const SceneHeader& h = reader.header();
       info_.materials.insert(info_.materials.end(), h.materials.begin(), h.materials.end());
@@ -272,7 +256,8 @@ class StoreBuilder {
     if (bounds_.empty()) bounds_ = Aabb(Vec3(-1.0), Vec3(1.0));  // an empty model still makes a store
     if (options_.codec == CellCodec::Draco) lattice_ = Lattice::covering(bounds_, options_.quant_bits);
     const double slack = options_.codec == CellCodec::Draco ? lattice_.step : 0.0;
-    root.region = padded_root(bounds_, slack);
+    root.region = KdTree::root_bounds(bounds_, slack);
+    root_region_ = root.region;
     root.count = out.records();
     root.sample = std::move(sample.points());
     return Status::ok();
@@ -541,7 +526,7 @@ class StoreBuilder {
     report_.cells = cells_.size();
     info_.codec = options_.codec;
     info_.lattice = lattice_;
-    info_.bounds = root_region();
+    info_.bounds = root_region_;
     info_.input_primitives = report_.input_primitives;
     info_.primitives = report_.primitives - snapped_away_;
     info_.references = report_.references;
@@ -560,15 +545,9 @@ class StoreBuilder {
     if (Status s = writer_->add_section(kTreeSection, encode_tree(nodes_)); !s) return s;
     if (Status s = writer_->add_section(kCellsSection, encode_cells(cells_)); !s) return s;
     if (Status s = writer_->finish(); !s) return s;
-    report_.store_bytes = writer_->bytes_written();
     std::error_code ec;
     report_.store_bytes = fs::file_size(options_.output, ec);
     return Status::ok();
-  }
-
-  Aabb root_region() const {
-    const double slack = options_.codec == CellCodec::Draco ? lattice_.step : 0.0;
-    return padded_root(bounds_, slack);
   }
 
   const BuildOptions& options_;
@@ -578,6 +557,7 @@ class StoreBuilder {
   std::optional<Progress> build_progress_;
   std::optional<WalkableGridBuilder> grid_;
   Aabb bounds_;
+  Aabb root_region_;  // bounds_ padded: the top tree's root
   Lattice lattice_;
   uint64_t capacity_ = 0;
   uint64_t root_count_ = 0;

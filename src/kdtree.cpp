@@ -59,15 +59,7 @@ class KdBuilder {
     } else {
       if (items.empty()) root = Aabb(Vec3(-1.0), Vec3(1.0));
       const double scale = std::max(glm::length(root.extent()), 1e-300);
-      // The root is padded a little more than the primitives so that no primitive touches it.
-      root = padded(root, 2.0 * scale);
-      // Give flat roots some thickness: cells are never flat.
-      for (int a = 0; a < 3; ++a) {
-        if (root.hi[a] - root.lo[a] <= 1e-9 * scale) {
-          root.lo[a] -= 1e-6 * scale;
-          root.hi[a] += 1e-6 * scale;
-        }
-      }
+      root = KdTree::root_bounds(root);
       clip_items(items, root, scale);
     }
     tree_.bounds_ = root;
@@ -347,6 +339,22 @@ KdTree KdTree::build(const Scene& scene, const KdBuildOptions& options) {
   KdBuilder builder(tree, options);
   builder.build(scene);
   return tree;
+}
+
+Aabb KdTree::root_bounds(const Aabb& content, double extra) {
+  const double scale = std::max(glm::length(content.extent()), 1e-300);
+  // The root is padded a little more than the primitives so that no primitive touches it.
+  Aabb root = padded(content, 2.0 * scale);
+  root.lo -= Vec3(extra);
+  root.hi += Vec3(extra);
+  // Give flat roots some thickness: cells are never flat.
+  for (int a = 0; a < 3; ++a) {
+    if (root.hi[a] - root.lo[a] <= 1e-9 * scale) {
+      root.lo[a] -= 1e-6 * scale;
+      root.hi[a] += 1e-6 * scale;
+    }
+  }
+  return root;
 }
 
 KdTree KdTree::refine(const Scene& scene, const std::vector<Node>& top_nodes, const Aabb& top_bounds,

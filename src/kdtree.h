@@ -60,6 +60,9 @@ class KdTree {
   };
 
   static KdTree build(const Scene& scene, const KdBuildOptions& options = {});
+  // The root region build() gives content with these bounds: padded by a relative epsilon
+  // (plus `extra`, e.g. a lattice step) so no primitive touches it, and never flat.
+  static Aabb root_bounds(const Aabb& content, double extra = 0.0);
   // A tree whose upper levels are given — `top_nodes` over `top_bounds`, as a store's top tree
   // (Node::child of a leaf indexes `cell_prims`) — and whose top cells are each built further
   // by the SAH builder from the scene primitives listed for them. Ties, padding and ropes as in

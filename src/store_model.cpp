@@ -327,18 +327,18 @@ Status StoreModel::check_cell(uint32_t cell, const Scene& decoded) const {
     return Status::corruption(fmt::format("{}: cell {} page {}: {} primitives, the cell record says {}",
                                           reader_->name(), cell, c.page, decoded.size(), c.references));
   }
+  // Snapped or decoded geometry may sit a lattice step across the region: allow that much.
+  Aabb region = c.bounds;
+  const double slack = info_.codec == CellCodec::Draco ? info_.lattice.step : 0.0;
+  const double eps = slack + 1e-9 * glm::length(info_.bounds.extent());
+  region.lo -= Vec3(eps);
+  region.hi += Vec3(eps);
   for (uint32_t i = 0; i < decoded.size(); ++i) {
     const PrimRef& p = decoded.prims[i];
     if (p.material >= info_.materials.size() || p.source >= info_.input_primitives) {
       return Status::corruption(fmt::format("{}: cell {} page {}: primitive {} has a bad material or source",
                                             reader_->name(), cell, c.page, i));
     }
-    // Snapped or decoded geometry may sit a lattice step across the region: allow that much.
-    Aabb region = c.bounds;
-    const double slack = info_.codec == CellCodec::Draco ? info_.lattice.step : 0.0;
-    const double eps = slack + 1e-9 * glm::length(info_.bounds.extent());
-    region.lo -= Vec3(eps);
-    region.hi += Vec3(eps);
     if (region.intersection(decoded.prim_bounds(i)).empty()) {
       return Status::corruption(fmt::format("{}: cell {} page {}: primitive {} lies outside the cell", reader_->name(),
                                             cell, c.page, i));
