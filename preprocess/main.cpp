@@ -49,6 +49,9 @@ int main(int argc, char** argv) {
   app.add_flag("--walkable", options.walkable,
                "add a sparse OpenVDB distance grid for walk-mode collision (also when a MODEL.json sidecar "
                "says \"walkable\": true)");
+  bool no_walkable = false;
+  auto* no_walk = app.add_flag("--no-walkable", no_walkable, "no collision grid, whatever a sidecar says");
+  no_walk->excludes(app.get_option("--walkable"));
   app.add_option("--sdf-voxel", options.sdf_voxel, "voxel size of the collision grid (default: from the model size)");
   app.add_option("--walk-radius", options.walk_radius,
                  "walker clearance the collision grid must resolve (default 0.25, model units)");
@@ -62,7 +65,9 @@ int main(int argc, char** argv) {
   }
   options.memory = *bytes;
   options.codec = codec == "raw" ? frontier::CellCodec::Raw : frontier::CellCodec::Draco;
-  for (const std::string& in : options.inputs) options.walkable = options.walkable || sidecar_says_walkable(in);
+  if (!no_walkable) {
+    for (const std::string& in : options.inputs) options.walkable = options.walkable || sidecar_says_walkable(in);
+  }
 
   auto report = frontier::build_store(options);
   if (!report) {

@@ -79,6 +79,7 @@ struct FrustumCaster::Worker {
   std::array<std::vector<Job>, 4> children;  // next level, by quadrant
   std::vector<Incidence> arena_out;          // incidence lists of those children
   std::vector<Job> remaining;                // jobs skipped because the budget ran out
+  mutable std::vector<Job> parked;           // jobs that reached a missing cell (paging)
   std::vector<Incidence> scratch;            // a freshly collected list
   std::vector<double> fill_t;                // per-pixel hits of the fill element
   std::vector<uint32_t> occluders;
@@ -148,6 +149,7 @@ void FrustumCaster::begin(const View& view, SampleBuffer& buffer, CellMarks& mar
     for (auto& c : w->children) c.clear();
     w->arena_out.clear();
     w->remaining.clear();
+    w->parked.clear();
   }
   arenas_in_.clear();
   current_.clear();
@@ -187,14 +189,64 @@ void FrustumCaster::begin(const View& view, SampleBuffer& buffer, CellMarks& mar
   }
 }
 
-bool FrustumCaster::complete() const {
-  if (!current_.empty()) return false;
+bool FrustumCaster::runnable() const {
+  if (!current_.empty()) return true;
   for (const auto& w : workers_) {
     for (const auto& c : w->children) {
-      if (!c.empty()) return false;
+      if (!c.empty()) return true;
     }
   }
+  return false;
+}
+
+bool FrustumCaster::complete() const { return !runnable() && parked() == 0; }
+
+size_t FrustumCaster::parked() const {
+  size_t n = 0;
+  for (const auto& w : workers_) n += w->parked.size();
+  return n;
+}
+
+bool FrustumCaster::gate_missing(int32_t cell) const {
+  if (gate_ == nullptr || !gate_->missing(cell)) return false;
+  gate_->want(cell);
   return true;
+}
+
+void FrustumCaster::park(const Job& job, Worker& w) const {
+  Job parked = job;
+  parked.state = kFresh;
+  parked.inc_count = 0;
+  w.parked.push_back(parked);
+}
+
+void FrustumCaster::tree_changed() {
+  const size_t cells = tree_.cells().size();
+  marks_->grow(cells);
+  if (cell_cache_count_ < cells) {
+    // Entries of this frame move along; new cells start unstamped.
+    auto bigger = std::make_unique<CellCache[]>(cells);
+    for (size_t c = 0; c < cell_cache_count_; ++c) {
+      bigger[c].entries = std::move(cell_cache_[c].entries);
+      bigger[c].stamp.store(cell_cache_[c].stamp.load(std::memory_order_relaxed), std::memory_order_relaxed);
+    }
+    cell_cache_ = std::move(bigger);
+    cell_cache_count_ = cells;
+  }
+}
+
+// Parked work starts again from the eye: the cell it waited for may have been refined into a
+// subtree since, and walking the cells in front of it again finds nothing new (deterministic).
+void FrustumCaster::resume_parked() {
+  const int32_t eye_cell = tree_.locate(view_.eye, view_.forward);
+  for (auto& w : workers_) {
+    for (Job job : w->parked) {
+      job.cell = eye_cell;
+      job.state = kFresh;
+      current_.push_back(job);
+    }
+    w->parked.clear();
+  }
 }
 
 bool FrustumCaster::run(const FrameBudget& budget, Counters& counters) {
@@ -211,7 +263,7 @@ bool FrustumCaster::run(const FrameBudget& budget, Counters& counters) {
   count_samples_ = budget.samples > 0;
   if (count_samples_) samples_done_ = 0;
   bool interrupted = false;
-  while (!complete() && !interrupted) {
+  while (runnable() && !interrupted) {
     if (current_.empty()) finish_level();
     std::vector<Job> level;
     level.swap(current_);
@@ -317,8 +369,9 @@ void FrustumCaster::resolve_by_walking(const Job& job, Worker& w, bool from_next
       } else if (from_next_cell) {
         start = tree_.arrival(job.cell, ray, tree_.exit(job.cell, ray));
       }
-      const RayHit hit = walk_pixel(x, y, ray, tmin, start, w);
-      confirm(x, y, hit.prim, hit.t, ray, w);
+      bool parked = false;
+      const RayHit hit = walk_pixel(x, y, ray, tmin, start, w, parked);
+      if (!parked) confirm(x, y, hit.prim, hit.t, ray, w);
     }
   }
 }
@@ -326,12 +379,21 @@ void FrustumCaster::resolve_by_walking(const Job& job, Worker& w, bool from_next
 // Ray walking for one pixel of a frustum (§3.2's 2×2 case). Unlike a lone ray it shares the
 // frame's per-element screen rectangles: an element whose rectangle misses the pixel, or whose
 // bounds lie beyond the best hit so far, is never intersected.
-RayHit FrustumCaster::walk_pixel(int x, int y, const Ray& ray, double tmin, int32_t cell, Worker& w) const {
+RayHit FrustumCaster::walk_pixel(int x, int y, const Ray& ray, double tmin, int32_t cell, Worker& w,
+                                 bool& parked) const {
   ++w.counters.rays_walked;
   size_t steps_left = tree_.cells().size() + 16;
   while (cell != KdTree::kNone && steps_left-- > 0) {
     ++w.counters.cell_visits;
     if (marks_->mark(cell)) ++w.counters.cells_touched;
+    if (gate_missing(cell)) {
+      Job job;
+      job.x0 = job.x1 = x;
+      job.y0 = job.y1 = y;
+      park(job, w);
+      parked = true;
+      return {};
+    }
     const KdTree::Exit e = tree_.exit(cell, ray);
     const double tmax = e.t + cell_slack(e.t, slack_scale_);
     RayHit best;
@@ -432,6 +494,10 @@ void FrustumCaster::process(Job job, Worker& w) {
 
     if (marks_->mark(job.cell)) ++w.counters.cells_touched;
     ++w.counters.cell_visits;
+    if (gate_missing(job.cell)) {
+      park(job, w);
+      return;
+    }
     const Incidence* list = nullptr;
     uint32_t n = 0;
     if (job.state == kFresh) {
@@ -713,8 +779,9 @@ bool FrustumCaster::try_fill(const Job& job, const Incidence* list, uint32_t n, 
       const double te = w.fill_t[static_cast<size_t>(y - job.y0) * nx + static_cast<size_t>(x - job.x0)];
       if (te == kInfinity) {
         // The element misses this ray inside the cell: walk it like a 2×2 ray.
-        const RayHit hit = walk_pixel(x, y, ray, tmin, job.cell, w);
-        confirm(x, y, hit.prim, hit.t, ray, w);
+        bool parked = false;
+        const RayHit hit = walk_pixel(x, y, ray, tmin, job.cell, w, parked);
+        if (!parked) confirm(x, y, hit.prim, hit.t, ray, w);
         continue;
       }
       RayHit best{element, te};

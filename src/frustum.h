@@ -43,6 +43,16 @@ struct FrameBudget {
   uint64_t samples = 0;  // 0: no sample limit
 };
 
+// Out-of-core rendering (PagedWorld): cells whose geometry is not in memory yet. Work that
+// reaches such a cell is parked and want() asks for the cell; nothing is ever resolved past a
+// missing cell, so every confirmed sample stays exact. Both calls come from worker threads.
+class CellGate {
+ public:
+  virtual ~CellGate() = default;
+  virtual bool missing(int32_t cell) const = 0;
+  virtual void want(int32_t cell) = 0;
+};
+
 class FrustumCaster {
  public:
   // `threads` worker threads (0: all cores).
@@ -64,7 +74,20 @@ class FrustumCaster {
   // is spent; counters accumulate.
   // Returns true when every pixel is resolved. May be called again to continue the frame.
   bool run(const FrameBudget& budget, Counters& counters);
+  // Every pixel resolved: no queued and no parked work.
   bool complete() const;
+  // Queued work that run() could do now (parked work excluded).
+  bool runnable() const;
+
+  // Paging. With a gate set, a frustum or pixel that reaches a missing cell is parked (see
+  // CellGate); run() does everything else and returns. After cells arrived, the owner calls
+  // tree_changed() (the tree grew or changed between slices: per-cell state is resized, this
+  // frame's marks kept) and resume_parked(), which queues the parked work again from the eye.
+  // REQUIRES for both: no run() in progress.
+  void set_gate(CellGate* gate) { gate_ = gate; }
+  void tree_changed();
+  size_t parked() const;
+  void resume_parked();
 
  private:
   struct Job;
@@ -86,7 +109,10 @@ class FrustumCaster {
   };
   struct CellCache;
   const std::vector<Incidence>& cell_entries(int32_t cell) const;
-  RayHit walk_pixel(int x, int y, const Ray& ray, double tmin, int32_t cell, Worker& w) const;
+  // Walks one pixel; parks it (and returns no hit with `parked` set) at a missing cell.
+  RayHit walk_pixel(int x, int y, const Ray& ray, double tmin, int32_t cell, Worker& w, bool& parked) const;
+  bool gate_missing(int32_t cell) const;
+  void park(const Job& job, Worker& w) const;
   double footprint(const Job& job, const Incidence* list, uint32_t n, Worker& w) const;
   size_t resolve_pixel_major(const Job& job, const Incidence* list, uint32_t n, Worker& w);
   size_t resolve_in_cell(const Job& job, const Incidence* list, uint32_t n, bool have_rects, Worker& w);
@@ -100,6 +126,7 @@ class FrustumCaster {
 
   const Scene& scene_;
   const KdTree& tree_;
+  CellGate* gate_ = nullptr;
   const Shader& shader_;
   View view_;
   SampleBuffer* buffer_ = nullptr;

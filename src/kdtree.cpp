@@ -365,10 +365,38 @@ KdTree KdTree::refine(const Scene& scene, const std::vector<Node>& top_nodes, co
   return tree;
 }
 
+KdTree KdTree::top_only(const std::vector<Node>& nodes, const Aabb& bounds) {
+  size_t cells = 0;
+  for (const Node& n : nodes) {
+    if (n.is_leaf()) cells = std::max<size_t>(cells, n.child + 1);
+  }
+  Scene none;
+  std::vector<std::vector<uint32_t>> lists(cells);
+  KdBuildOptions flat;
+  flat.min_cell_prims = UINT32_MAX;
+  // refine() keeps node indices (preorder, nothing split) but numbers cells in its own order.
+  KdTree t = refine(none, nodes, bounds, lists, flat);
+  KdTree out;
+  out.bounds_ = t.bounds_;
+  out.nodes_ = t.nodes_;
+  out.depth_ = t.depth_;
+  out.cells_.resize(cells);
+  for (size_t n = 0; n < nodes.size(); ++n) {
+    if (!nodes[n].is_leaf()) continue;
+    out.cells_[nodes[n].child] = t.cells_[t.nodes_[n].child];
+    out.nodes_[n].child = nodes[n].child;
+  }
+  return out;
+}
+
 int32_t KdTree::descend(int32_t n, const Vec3& p, const Vec3& dir) const {
   while (true) {
     const Node& node = nodes_[static_cast<size_t>(n)];
     if (node.is_leaf()) return static_cast<int32_t>(node.child);
+    if (node.is_link()) {
+      n = static_cast<int32_t>(node.child);
+      continue;
+    }
     const int a = static_cast<int>(node.axis_or_leaf);
     bool upper;
     if (p[a] < node.split) {

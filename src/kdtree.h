@@ -39,10 +39,11 @@ class KdTree {
 
   struct Node {
     double split = 0.0;
-    uint32_t axis_or_leaf = 3;  // 0..2 split axis, 3 leaf
+    uint32_t axis_or_leaf = 3;  // 0..2 split axis, 3 leaf, 4 link (PagedWorld only)
     uint32_t child = 0;         // interior: index of the upper child (lower child is this + 1);
-                                // leaf: cell index
+                                // leaf: cell index; link: root node of a grafted subtree
     bool is_leaf() const { return axis_or_leaf == 3; }
+    bool is_link() const { return axis_or_leaf == 4; }
   };
 
   struct Cell {
@@ -70,6 +71,9 @@ class KdTree {
   static KdTree refine(const Scene& scene, const std::vector<Node>& top_nodes, const Aabb& top_bounds,
                        const std::vector<std::vector<uint32_t>>& cell_prims, const KdBuildOptions& options = {});
 
+  // The tree of `nodes` over `bounds` alone — a store's top tree — with ropes, every cell empty
+  // and numbered as its leaf node's `child` says (cell c is the store's cell c).
+  static KdTree top_only(const std::vector<Node>& nodes, const Aabb& bounds);
   const Aabb& bounds() const { return bounds_; }
   const std::vector<Node>& nodes() const { return nodes_; }
   const std::vector<Cell>& cells() const { return cells_; }
@@ -101,6 +105,7 @@ class KdTree {
   uint32_t depth_ = 0;
 
   friend class KdBuilder;
+  friend class PagedWorld;  // grafts and unlinks the subtrees of paged-in store cells
 };
 
 }  // namespace frontier

@@ -33,6 +33,16 @@ void CellMarks::resize(size_t cells) {
   frame_ = 1;
 }
 
+void CellMarks::grow(size_t cells) {
+  if (cells <= size_ && stamp_) return;
+  auto bigger = std::make_unique<std::atomic<uint32_t>[]>(cells);
+  for (size_t i = 0; i < cells; ++i) {
+    bigger[i].store(i < size_ ? stamp_[i].load(std::memory_order_relaxed) : 0u, std::memory_order_relaxed);
+  }
+  stamp_ = std::move(bigger);
+  size_ = cells;
+}
+
 namespace {
 
 Rgb mix(Rgb a, Rgb b) { return {0.5f * (a.r + b.r), 0.5f * (a.g + b.g), 0.5f * (a.b + b.b)}; }

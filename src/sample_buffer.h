@@ -70,6 +70,10 @@ class SampleBuffer {
 class CellMarks {
  public:
   void resize(size_t cells);
+  // Makes room for at least `cells` cells keeping this frame's marks (a tree that grew between
+  // two slices of one frame).
+  void grow(size_t cells);
+  size_t size() const { return size_; }
   void begin_frame() { ++frame_; }
   // True the first time cell c is marked in this frame.
   bool mark(int32_t c) {

@@ -310,11 +310,17 @@ Status StoreModel::read_cell(uint32_t cell, Scene& out) const {
   if (c.page == StoreCell::kNoPage) return Status::ok();
   auto page = reader_->read_page(c.page);
   if (!page) return page.status();
-  if (page->codec != static_cast<uint8_t>(CellCodec::Raw) && page->codec != static_cast<uint8_t>(CellCodec::Draco)) {
+  return decode_page(cell, page->codec, page->payload, out);
+}
+
+Status StoreModel::decode_page(uint32_t cell, uint8_t codec, std::span<const uint8_t> payload, Scene& out) const {
+  out = Scene{};
+  const StoreCell& c = cells_.at(cell);
+  if (codec != static_cast<uint8_t>(CellCodec::Raw) && codec != static_cast<uint8_t>(CellCodec::Draco)) {
     return Status::corruption(
-        fmt::format("{}: cell {} page {}: unknown codec {}", reader_->name(), cell, c.page, page->codec));
+        fmt::format("{}: cell {} page {}: unknown codec {}", reader_->name(), cell, c.page, codec));
   }
-  Status s = decode_cell(page->payload, static_cast<CellCodec>(page->codec), info_.lattice, out);
+  Status s = decode_cell(payload, static_cast<CellCodec>(codec), info_.lattice, out);
   if (!s) {
     return Status::corruption(fmt::format("{}: cell {} page {}: {}", reader_->name(), cell, c.page, s.message()));
   }

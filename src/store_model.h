@@ -80,6 +80,8 @@ class StoreModel {
   // Decodes one cell's page (an empty scene for a cell without a page). Corruption naming the
   // cell and page when the page's checksum or contents are bad. Thread-safe.
   Status read_cell(uint32_t cell, Scene& out) const;
+  // The same for a page already read (by the page cache): decodes and checks it.
+  Status decode_page(uint32_t cell, uint8_t codec, std::span<const uint8_t> payload, Scene& out) const;
   // Checks a decoded cell against its record: reference count, and every primitive overlaps
   // the cell's region.
   Status check_cell(uint32_t cell, const Scene& decoded) const;

@@ -9,6 +9,7 @@
 #include "store/store_file.h"
 #include "tests/engine_util.h"
 #include "tests/process_util.h"
+#include "tests/test_files.h"
 
 #include <gtest/gtest.h>
 
@@ -27,22 +28,8 @@ namespace {
 namespace fs = std::filesystem;
 using proc::run_binary;
 
-fs::path scratch() {
-  static const fs::path dir = fs::temp_directory_path() / ("frontier_build_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
-  return dir;
-}
-
-class ScratchCleanup : public ::testing::Environment {
- public:
-  void TearDown() override {
-    std::error_code ec;
-    fs::remove_all(scratch(), ec);
-  }
-};
-[[maybe_unused]] ::testing::Environment* const cleanup = ::testing::AddGlobalTestEnvironment(new ScratchCleanup);
-
-std::string spd(const std::string& name) { return std::string(FRONTIER_DATA_DIR) + "/spd/" + name + ".nff"; }
+const fs::path& scratch() { return testing::scratch_dir("frontier_build"); }
+using testing::spd;
 
 using frontier::proc::gen_binary;
 

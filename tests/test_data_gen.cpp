@@ -10,6 +10,7 @@
 #include "src/ply_writer.h"
 #include "src/scene.h"
 #include "tests/process_util.h"
+#include "tests/test_files.h"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -42,22 +43,7 @@ using json = nlohmann::json;
 
 using frontier::proc::gen_binary;
 
-fs::path scratch_dir() {
-  static const fs::path dir = fs::temp_directory_path() / ("frontier_datagen_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
-  return dir;
-}
-
-// Removes the scratch directory after the last test.
-class ScratchCleanup : public testing::Environment {
- public:
-  void TearDown() override {
-    std::error_code ec;
-    fs::remove_all(fs::temp_directory_path() / ("frontier_datagen_" + std::to_string(::getpid())), ec);
-  }
-};
-[[maybe_unused]] testing::Environment* const scratch_cleanup =
-    testing::AddGlobalTestEnvironment(new ScratchCleanup);
+const fs::path& scratch_dir() { return frontier::testing::scratch_dir("frontier_datagen"); }
 
 using frontier::proc::RunResult;
 using frontier::proc::slurp;
@@ -206,7 +192,7 @@ bool inside(const Aabb& b, const Vec3& p, double tol) {
 }
 
 // --- the shared building ------------------------------------------------------------------
-class DataGen : public testing::Test {
+class DataGen : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     ply_ = (scratch_dir() / "bld.ply").string();

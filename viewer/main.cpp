@@ -1,21 +1,40 @@
-// frontier-view: the command-line front end. This version renders a model file or a store loaded
-// in memory, headless, with a choice of visibility method; exit code 0 on success, 1 on bad input
-// (the message names the file and line), 2 on bad options.
+// frontier-view: the command-line front end.
+//
+//   frontier-view STORE [--cache 512M] [--size WxH] [--threads N] [--frame-ms MS | --samples N]
+//       a window (GLFW) walking through a store, paging cells in as the view reaches them;
+//   frontier-view STORE --headless --path PATH.cam --report frames.jsonl [--frames N]
+//       [--png-dir DIR] [--oracle] [--sync-paging] [--walk]
+//       the same walk along a camera path without a window, one JSON line per frame and a summary;
+//   frontier-view STORE --headless [--png F] [--ids F] [--stats F]
+//       one complete frame of a store from its camera (paged, waiting for pages);
+//   frontier-view MODEL --headless [--method brute|raywalk|frustum] [--png F] [--ids F] [--stats F]
+//       a model file (NFF, PLY, OBJ, OFF) rendered in memory (or a store with --in-memory).
+//
+// Exit codes: 0 success, 1 bad input (the message names the file and line or page), 2 bad options.
+#include "src/camera_path.h"
+#include "src/collision_grid.h"
 #include "src/image.h"
 #include "src/kdtree.h"
+#include "src/progress.h"
 #include "src/render.h"
 #include "src/scene.h"
 #include "src/store_model.h"
 #include "src/view.h"
+#include "src/walker.h"
+#include "src/walkthrough.h"
 #include "store/page_format.h"
+#include "viewer/window.h"
 
 #include <CLI/CLI.hpp>
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
+#include <sys/resource.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 
 using namespace frontier;
@@ -42,114 +61,90 @@ bool is_store(const std::string& path) {
   return got == sizeof magic && std::memcmp(magic, store::kMagic.data(), sizeof magic) == 0;
 }
 
-}  // namespace
+int fail(const Status& s) {
+  std::fprintf(stderr, "frontier-view: %s\n", s.to_string().c_str());
+  return 1;
+}
 
-int main(int argc, char** argv) {
-  CLI::App app{"frontier-view: render a model with exact per-pixel visibility (ray casting on the CPU).\n"
-               "Reads NFF, PLY, OBJ or OFF (or a store from frontier-build, decoded whole) into memory,\n"
-               "builds a k-d tree and renders one frame headless."};
+int bad_option(const std::string& message) {
+  std::fprintf(stderr, "frontier-view: %s\n", message.c_str());
+  return 2;
+}
+
+double peak_rss_mib() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return double(u.ru_maxrss) / 1024.0;  // ru_maxrss is in KiB on Linux
+}
+
+double percentile(std::vector<double> v, double p) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const size_t i = std::min(v.size() - 1, static_cast<size_t>(p * double(v.size() - 1) + 0.5));
+  return v[i];
+}
+
+struct Options {
   std::string scene_path, size_text, method_text = "frustum", png_path, ids_path, stats_path;
-  bool headless = false, no_shadows = false;
-  int threads = 0;
+  std::string cache_text = "512M", path_file, report_path, png_dir;
+  bool headless = false, no_shadows = false, in_memory = false, oracle = false, sync_paging = false, walk = false;
+  int threads = 0, frames = 0, png_every = 0;
   uint32_t cell_prims = 8, min_cell_prims = 0;
   int leaf_pixels = FrustumCaster::kDefaultLeafPixels;
-  double frame_ms = 0.0;
+  double frame_ms = 0.0, eye_height = 0.0, radius = 0.0;
   uint64_t samples = 0;
-  app.add_option("SCENE", scene_path, "model file (.nff, .ply, .obj, .off) or store file (frontier-build)")->required();
-  app.add_flag("--headless", headless, "render without a window (required in this version)");
-  app.add_option("--size", size_text, "image size WxH (default: the scene's resolution, else 512x512)");
-  app.add_option("--method", method_text, "visibility method: brute | raywalk | frustum")
-      ->check(CLI::IsMember({"brute", "raywalk", "frustum"}));
-  app.add_option("--png", png_path, "write the shaded image as PNG");
-  app.add_option("--ids", ids_path,
-                 "write the first-hit input primitive per pixel (uint32 little-endian, row-major, "
-                 "0xFFFFFFFF = background)");
-  app.add_option("--stats", stats_path, "write counters as JSON");
-  app.add_option("--threads", threads, "worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
-  app.add_option("--cell-prims", cell_prims, "largest cell the k-d tree keeps when it could split")
-      ->check(CLI::Range(1u, 1000000u));
-  app.add_option("--min-cell-prims", min_cell_prims, "cells at or below this size never split (coarser cells)")
-      ->check(CLI::Range(0u, 1000000u));
-  app.add_option("--leaf-pixels", leaf_pixels,
-                 "frustum: frusta up to N×N pixels walk their pixels individually (paper: 2)")
-      ->check(CLI::Range(2, 4096));
-  app.add_flag("--no-shadows", no_shadows, "skip the deferred shadow effect");
-  auto* peg_time = app.add_option("--frame-ms", frame_ms, "frustum: peg frame time (stop after MS milliseconds)")
-                       ->check(CLI::PositiveNumber);
-  auto* peg_samples = app.add_option("--samples", samples, "frustum: peg sample count (stop after N samples)")
-                          ->check(CLI::PositiveNumber);
-  peg_time->excludes(peg_samples);
-  CLI11_PARSE(app, argc, argv);
+  int width = 0, height = 0;
+};
 
-  if (!headless) {
-    std::fprintf(stderr, "frontier-view: only --headless rendering exists in this version\n");
-    return 2;
-  }
+// A model file, or a store decoded whole, rendered in memory: one frame.
+int render_in_memory(const Options& o) {
   Method method;
-  parse_method(method_text, method);
-
+  parse_method(o.method_text, method);
   Scene scene;
   KdTree tree;
   KdBuildOptions build;
-  build.max_cell_prims = cell_prims;
-  build.min_cell_prims = min_cell_prims;
+  build.max_cell_prims = o.cell_prims;
+  build.min_cell_prims = o.min_cell_prims;
   const auto t0 = std::chrono::steady_clock::now();
-  auto t1 = t0;
-  if (is_store(scene_path)) {
-    // A store rendered in memory: every page decoded, each store cell refined by the SAH builder.
-    auto model = StoreModel::open(scene_path);
+  if (is_store(o.scene_path)) {
+    auto model = StoreModel::open(o.scene_path);
     Status s = model ? (*model)->load_all(scene, tree, build) : model.status();
-    if (!s) {
-      std::fprintf(stderr, "frontier-view: %s\n", s.to_string().c_str());
-      return 1;
-    }
-    t1 = std::chrono::steady_clock::now();
+    if (!s) return fail(s);
   } else {
-    if (Status s = load_scene(scene_path, scene); !s) {
-      std::fprintf(stderr, "frontier-view: %s\n", s.to_string().c_str());
-      return 1;
-    }
-    t1 = std::chrono::steady_clock::now();
-    tree = KdTree::build(scene, build);
+    if (Status s = load_scene(o.scene_path, scene); !s) return fail(s);
   }
+  const auto t1 = std::chrono::steady_clock::now();
+  if (!is_store(o.scene_path)) tree = KdTree::build(scene, build);
   const auto t2 = std::chrono::steady_clock::now();
-
   Camera camera = scene.camera ? *scene.camera : automatic_camera(scene.bounds());
   int width = camera.width > 0 ? camera.width : 512, height = camera.height > 0 ? camera.height : 512;
-  if (!size_text.empty() && !parse_size(size_text, width, height)) {
-    std::fprintf(stderr, "frontier-view: --size %s: expected WxH with 1 <= W, H <= 16384\n", size_text.c_str());
-    return 2;
+  if (o.width > 0) {
+    width = o.width;
+    height = o.height;
   }
   const View view(camera, width, height);
   RenderOptions options;
   options.method = method;
-  options.threads = threads;
-  options.shadows = !no_shadows;
-  options.budget.ms = frame_ms;
-  options.leaf_pixels = leaf_pixels;
-  options.budget.samples = samples;
+  options.threads = o.threads;
+  options.shadows = !o.no_shadows;
+  options.budget.ms = o.frame_ms;
+  options.budget.samples = o.samples;
+  options.leaf_pixels = o.leaf_pixels;
   SampleBuffer buffer;
   const Counters counters = render_frame(scene, tree, view, options, buffer);
-
   fmt::print(stderr, "{}: {} primitives ({} input, {} degenerate dropped), {} cells, depth {}; "
                      "load {:.0f} ms, build {:.0f} ms; {} {}x{}: {:.1f} ms, {} samples\n",
-             scene_path, scene.size(), scene.input_primitives, scene.degenerate_dropped, tree.cells().size(),
+             o.scene_path, scene.size(), scene.input_primitives, scene.degenerate_dropped, tree.cells().size(),
              tree.depth(), std::chrono::duration<double, std::milli>(t1 - t0).count(),
              std::chrono::duration<double, std::milli>(t2 - t1).count(), method_name(method), width, height,
              counters.ms, counters.samples);
-  if (!png_path.empty()) {
-    if (Status s = write_png(png_path, width, height, buffer.image()); !s) {
-      std::fprintf(stderr, "frontier-view: %s\n", s.to_string().c_str());
-      return 1;
-    }
+  if (!o.png_path.empty()) {
+    if (Status s = write_png(o.png_path, width, height, buffer.image()); !s) return fail(s);
   }
-  if (!ids_path.empty()) {
-    if (Status s = write_ids(ids_path, id_image(scene, buffer)); !s) {
-      std::fprintf(stderr, "frontier-view: %s\n", s.to_string().c_str());
-      return 1;
-    }
+  if (!o.ids_path.empty()) {
+    if (Status s = write_ids(o.ids_path, id_image(scene, buffer)); !s) return fail(s);
   }
-  if (!stats_path.empty()) {
+  if (!o.stats_path.empty()) {
     nlohmann::json j = counters.to_json();
     j["method"] = method_name(method);
     j["width"] = width;
@@ -157,12 +152,265 @@ int main(int argc, char** argv) {
     j["primitives"] = scene.size();
     j["cells"] = tree.cells().size();
     j["shadows_declared"] = !scene.lights.empty();
-    std::ofstream out(stats_path);
+    std::ofstream out(o.stats_path);
     out << j.dump(2) << "\n";
-    if (!out) {
-      std::fprintf(stderr, "frontier-view: %s: cannot write\n", stats_path.c_str());
-      return 1;
-    }
+    if (!out) return fail(Status::io_error(o.stats_path + ": cannot write"));
   }
   return 0;
+}
+
+// Walk mode: the store must carry a distance grid (frontier-build --walkable).
+Result<std::unique_ptr<CollisionGrid>> load_grid(const StoreModel& model) {
+  if (!model.info().walkable) {
+    return Status::invalid_argument(model.reader().name() +
+                                    ": the store declares no walk mode (build it with --walkable)");
+  }
+  auto bytes = model.reader().read_section(kSdfSection);
+  if (!bytes) return bytes.status();
+  auto grid = CollisionGrid::load(*bytes);
+  if (!grid) return Status::corruption(model.reader().name() + ": sdf section: " + grid.status().message());
+  return std::make_unique<CollisionGrid>(std::move(*grid));
+}
+
+WalkParams walk_params(const Options& o, const StoreModel& model) {
+  WalkParams p;
+  if (o.eye_height > 0.0) p.eye_height = o.eye_height;
+  if (o.radius > 0.0) {
+    p.radius = o.radius;
+  } else if (model.info().walk_radius > 0.0) {
+    p.radius = model.info().walk_radius;
+  }
+  return p;
+}
+
+// The walk along a camera path without a window: frames.jsonl, PNGs, summary.
+int walk_headless(const Options& o, Walkthrough& walk, const Camera& start) {
+  std::vector<Camera> path;
+  if (!o.path_file.empty()) {
+    auto cams = read_camera_path(o.path_file);
+    if (!cams) return fail(cams.status());
+    path = std::move(*cams);
+    if (path.empty()) return fail(Status::invalid_argument(o.path_file + ": the path has no frames"));
+  } else {
+    path.push_back(start);
+  }
+  const size_t frames = o.frames > 0 ? static_cast<size_t>(o.frames) : path.size();
+  std::unique_ptr<CollisionGrid> grid;
+  std::unique_ptr<Walker> walker;
+  if (o.walk) {
+    auto g = load_grid(walk.model());
+    if (!g) return fail(g.status());
+    grid = std::move(*g);
+    const WalkParams params = walk_params(o, walk.model());
+    if (Status s = Walker::check(*grid, params); !s) return bad_option("walk mode: " + s.message());
+    walker = std::make_unique<Walker>(*grid, params);
+  }
+  std::ofstream report;
+  if (!o.report_path.empty()) {
+    report.open(o.report_path);
+    if (!report) return fail(Status::io_error(o.report_path + ": cannot write"));
+  }
+  if (!o.png_dir.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(o.png_dir, ec);
+    if (ec) return fail(Status::io_error(o.png_dir + ": " + ec.message()));
+  }
+  const size_t png_every = o.png_every > 0 ? size_t(o.png_every) : std::max<size_t>(1, frames / 4);
+  std::vector<double> frame_ms;
+  double samples = 0.0, ratio_sum = 0.0, ratio_max = 0.0;
+  uint64_t bytes_read = 0, ratio_frames = 0, errors = 0, resident_max = 0, complete = 0;
+  Vec3 eye = path.front().eye;
+  for (size_t f = 0; f < frames; ++f) {
+    Camera cam = path[std::min(f, path.size() - 1)];
+    if (walker) {
+      // The path gives where the walker wants to go; collision and gravity decide where it is.
+      const Vec3 look = cam.look_at - cam.eye;
+      eye = f == 0 ? walker->step(cam.eye, cam.eye, 0.0) : walker->step(eye, cam.eye, 1.0 / 30.0);
+      cam.eye = eye;
+      cam.look_at = eye + look;
+    }
+    FrameReport r = walk.frame(cam);
+    if (grid) r.collision_queries = walker->queries();
+    frame_ms.push_back(r.frame_ms);
+    samples += double(r.samples);
+    bytes_read += r.bytes_read;
+    errors = r.page_errors;
+    resident_max = std::max(resident_max, r.resident_bytes);
+    complete += r.complete ? 1 : 0;
+    if (r.oracle_ratio) {
+      ratio_sum += *r.oracle_ratio;
+      ratio_max = std::max(ratio_max, *r.oracle_ratio);
+      ++ratio_frames;
+    }
+    if (report.is_open()) report << r.to_json().dump() << "\n";
+    if (!o.png_dir.empty() && (f % png_every == 0 || f + 1 == frames)) {
+      const std::string file = fmt::format("{}/frame_{:05d}.png", o.png_dir, f);
+      if (Status s = write_png(file, walk.view().width, walk.view().height, walk.buffer().image()); !s) return fail(s);
+    }
+  }
+  nlohmann::json summary = {{"frames", frames},
+                            {"p50_frame_ms", percentile(frame_ms, 0.5)},
+                            {"p95_frame_ms", percentile(frame_ms, 0.95)},
+                            {"mean_samples", frames ? samples / double(frames) : 0.0},
+                            {"complete_frames", complete},
+                            {"peak_rss_mib", peak_rss_mib()},
+                            {"max_resident_bytes", resident_max},
+                            {"cache_budget", walk.world().budget_bytes()},
+                            {"total_bytes_read", bytes_read},
+                            {"page_errors", errors},
+                            {"collision_queries", walker ? walker->queries() : 0}};
+  if (ratio_frames > 0) {
+    summary["mean_touched_oracle_ratio"] = ratio_sum / double(ratio_frames);
+    summary["max_touched_oracle_ratio"] = ratio_max;
+  }
+  if (report.is_open()) {
+    report << nlohmann::json{{"summary", summary}}.dump() << "\n";
+    if (!report) return fail(Status::io_error(o.report_path + ": cannot write"));
+  }
+  fmt::print(stderr, "frontier-view: {} frames; frame ms p50 {:.1f} p95 {:.1f}; mean samples {:.0f} of {}; "
+                     "{} complete; peak RSS {:.0f} MiB (resident at most {:.1f} of {:.1f} MiB); read {:.1f} MiB; "
+                     "{} page errors{}\n",
+             frames, percentile(frame_ms, 0.5), percentile(frame_ms, 0.95), frames ? samples / double(frames) : 0.0,
+             walk.view().pixels(), complete, peak_rss_mib(), double(resident_max) / 1048576.0,
+             double(walk.world().budget_bytes()) / 1048576.0, double(bytes_read) / 1048576.0, errors,
+             ratio_frames ? fmt::format("; touched/oracle mean {:.3f} max {:.3f}", ratio_sum / double(ratio_frames),
+                                        ratio_max)
+                          : std::string());
+  return 0;
+}
+
+// One complete frame of a store from its camera (--png/--ids/--stats).
+int store_frame(const Options& o, Walkthrough& walk, const Camera& camera) {
+  const FrameReport r = walk.frame(camera);
+  fmt::print(stderr, "{}: {} cells touched, {} paged in ({:.1f} MiB read), {:.1f} ms, {} samples\n", o.scene_path,
+             r.cells_touched, r.cells_paged_in, double(r.bytes_read) / 1048576.0, r.frame_ms, r.image_samples);
+  if (!o.png_path.empty()) {
+    if (Status s = write_png(o.png_path, walk.view().width, walk.view().height, walk.buffer().image()); !s) {
+      return fail(s);
+    }
+  }
+  if (!o.ids_path.empty()) {
+    if (Status s = write_ids(o.ids_path, walk.ids()); !s) return fail(s);
+  }
+  if (!o.stats_path.empty()) {
+    std::ofstream out(o.stats_path);
+    out << r.to_json().dump(2) << "\n";
+    if (!out) return fail(Status::io_error(o.stats_path + ": cannot write"));
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"frontier-view: walk through a store far larger than memory with exact per-pixel visibility\n"
+               "(frustum casting on the CPU), paging in only the cells the view reaches, and report the\n"
+               "working set every frame. Also renders a model file (NFF, PLY, OBJ, OFF) in memory."};
+  Options o;
+  app.add_option("SCENE", o.scene_path, "store file (frontier-build) or model file (.nff, .ply, .obj, .off)")
+      ->required();
+  app.add_flag("--headless", o.headless, "no window: walk --path, or render one frame");
+  app.add_option("--size", o.size_text, "image size WxH (default 640x480 for stores; a model's own resolution or 512x512)");
+  app.add_option("--threads", o.threads, "render threads (0 = all cores)")->check(CLI::NonNegativeNumber);
+  auto* peg_time = app.add_option("--frame-ms", o.frame_ms, "peg frame time: stop each frame after MS milliseconds")
+                       ->check(CLI::PositiveNumber);
+  auto* peg_samples = app.add_option("--samples", o.samples, "peg sample count: stop each frame after N samples")
+                          ->check(CLI::PositiveNumber);
+  peg_time->excludes(peg_samples);
+  // Stores.
+  app.add_option("--cache", o.cache_text, "store: memory budget for paged cells, compressed and decoded (e.g. 512M, 2G)");
+  app.add_option("--path", o.path_file, "store, headless: camera path (.cam, from frontier-gen path)");
+  app.add_option("--frames", o.frames, "frames to render (default: the path's length; window: until closed)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--report", o.report_path, "store: write one JSON object per frame, then a summary line");
+  app.add_option("--png-dir", o.png_dir, "store, headless: write some frames as PNG into DIR");
+  app.add_option("--png-every", o.png_every, "with --png-dir: every Nth frame (default: frames/4) and the last")
+      ->check(CLI::PositiveNumber);
+  app.add_flag("--oracle", o.oracle, "store: count oracle_cells, the cells exact per-pixel rays pass before their first hit");
+  app.add_flag("--sync-paging", o.sync_paging, "store: wait for every page a frame needs (exact, complete frames)");
+  app.add_flag("--walk", o.walk, "store: walk mode along the path (gravity, collision); the store must be --walkable");
+  app.add_option("--eye-height", o.eye_height, "walk mode: eye height above the floor")->check(CLI::PositiveNumber);
+  app.add_option("--radius", o.radius, "walk mode: clearance kept from geometry (default: the store's)")
+      ->check(CLI::PositiveNumber);
+  app.add_flag("--in-memory", o.in_memory, "store: decode every page into memory and render like a model file");
+  // One frame.
+  app.add_option("--png", o.png_path, "one frame: write the image as PNG");
+  app.add_option("--ids", o.ids_path,
+                 "one frame: write the first-hit input primitive per pixel (uint32 little-endian, row-major, "
+                 "0xFFFFFFFF = background)");
+  app.add_option("--stats", o.stats_path, "one frame: write counters as JSON");
+  app.add_option("--method", o.method_text, "model file: visibility method: brute | raywalk | frustum")
+      ->check(CLI::IsMember({"brute", "raywalk", "frustum"}));
+  app.add_option("--cell-prims", o.cell_prims, "largest k-d cell kept when it could split (stores: inside a page)")
+      ->check(CLI::Range(1u, 1000000u));
+  app.add_option("--min-cell-prims", o.min_cell_prims, "model file: cells at or below this size never split")
+      ->check(CLI::Range(0u, 1000000u));
+  app.add_option("--leaf-pixels", o.leaf_pixels, "frusta up to N×N pixels walk their pixels individually (paper: 2)")
+      ->check(CLI::Range(2, 4096));
+  app.add_flag("--no-shadows", o.no_shadows, "skip the deferred shadow effect");
+  CLI11_PARSE(app, argc, argv);
+
+  if (!o.size_text.empty() && !parse_size(o.size_text, o.width, o.height)) {
+    return bad_option("--size " + o.size_text + ": expected WxH with 1 <= W, H <= 16384");
+  }
+  const bool store = is_store(o.scene_path);
+  if (!store || o.in_memory) {
+    if (!o.path_file.empty() || !o.report_path.empty() || o.walk || o.oracle) {
+      return bad_option("--path, --report, --walk and --oracle need a store (frontier-build) and no --in-memory");
+    }
+    if (!o.headless) return bad_option("a model file is rendered headless: add --headless (or build a store)");
+    return render_in_memory(o);
+  }
+  const auto cache = parse_byte_size(o.cache_text);
+  if (!cache || *cache < (1u << 20)) return bad_option("--cache " + o.cache_text + ": expected a size of at least 1M, e.g. 512M");
+
+  WalkOptions wo;
+  wo.cache_bytes = *cache;
+  wo.width = o.width > 0 ? o.width : 640;
+  wo.height = o.height > 0 ? o.height : 480;
+  wo.threads = o.threads;
+  wo.budget.ms = o.frame_ms;
+  wo.budget.samples = o.samples;
+  wo.sync_paging = o.sync_paging;
+  wo.oracle = o.oracle;
+  wo.shadows = !o.no_shadows;
+  wo.cell_prims = o.cell_prims;
+  wo.leaf_pixels = o.leaf_pixels;
+  auto walk = Walkthrough::open(o.scene_path, wo);
+  if (!walk) return fail(walk.status());
+  const StoreModelInfo& info = (*walk)->model().info();
+  const Camera start = info.camera ? *info.camera : automatic_camera(info.bounds);
+
+  if (o.headless) {
+    if (o.path_file.empty() && o.report_path.empty()) return store_frame(o, **walk, start);
+    return walk_headless(o, **walk, start);
+  }
+  WindowOptions win;
+  win.start = start;
+  win.frames = o.frames;
+  win.report = o.report_path;
+  if (!o.path_file.empty()) {
+    auto cams = read_camera_path(o.path_file);
+    if (!cams) return fail(cams.status());
+    win.path = std::move(*cams);
+  }
+  win.screenshot = o.png_path;
+  win.budget = wo.budget;
+  win.start_walking = o.walk;
+  std::unique_ptr<CollisionGrid> grid;
+  std::unique_ptr<Walker> walker;
+  if (info.walkable) {
+    auto g = load_grid((*walk)->model());
+    if (!g) return fail(g.status());
+    grid = std::move(*g);
+    const WalkParams params = walk_params(o, (*walk)->model());
+    if (Status s = Walker::check(*grid, params); s) {
+      walker = std::make_unique<Walker>(*grid, params);
+    } else {
+      std::fprintf(stderr, "frontier-view: walk mode off: %s\n", s.message().c_str());
+      if (o.walk) return 2;
+    }
+    win.walk_available = walker != nullptr;
+  }
+  return run_window(**walk, win, walker.get());
 }

@@ -1,0 +1,183 @@
+// Walkthrough: the out-of-core frame loop (see walkthrough.h).
+#include "src/walkthrough.h"
+
+#include "src/render.h"
+
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+
+namespace frontier {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+bool same_camera(const Camera& a, const Camera& b) {
+  return a.eye == b.eye && a.look_at == b.look_at && a.up == b.up && a.vfov_deg == b.vfov_deg;
+}
+
+double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
+
+}  // namespace
+
+nlohmann::json FrameReport::to_json() const {
+  nlohmann::json j = {{"frame", frame},
+                      {"cells_touched", cells_touched},
+                      {"cells_paged_in", cells_paged_in},
+                      {"bytes_read", bytes_read},
+                      {"resident_bytes", resident_bytes},
+                      {"pinned_bytes", pinned_bytes},
+                      {"cache_budget", cache_budget},
+                      {"primitives_tested", primitives_tested},
+                      {"ray_primitive_tests", ray_primitive_tests},
+                      {"rays", rays},
+                      {"samples", samples},
+                      {"frame_ms", frame_ms},
+                      {"stall_ms", stall_ms},
+                      {"image_samples", image_samples},
+                      {"pixels", pixels},
+                      {"complete", complete},
+                      {"continued", continued},
+                      {"shadows", shadows},
+                      {"parked", parked},
+                      {"cells_evicted", cells_evicted},
+                      {"cells_dropped", cells_dropped},
+                      {"page_errors", page_errors},
+                      {"resident_cells", resident_cells},
+                      {"collision_queries", collision_queries},
+                      {"decode_ms", decode_ms},
+                      {"shading_ops", shading_ops},
+                      {"shadow_rays", shadow_rays}};
+  if (oracle_cells) j["oracle_cells"] = *oracle_cells;
+  if (oracle_ratio) j["touched_oracle_ratio"] = *oracle_ratio;
+  return j;
+}
+
+Result<std::unique_ptr<Walkthrough>> Walkthrough::open(const std::string& store_path, const WalkOptions& options) {
+  if (options.width < 1 || options.height < 1) return Status::invalid_argument("image size must be at least 1x1");
+  auto model = StoreModel::open(store_path);
+  if (!model) return model.status();
+  std::unique_ptr<Walkthrough> w(new Walkthrough());
+  w->options_ = options;
+  w->model_ = std::move(*model);
+  PagedWorldOptions po;
+  po.budget_bytes = options.cache_bytes;
+  po.cell_build.max_cell_prims = options.cell_prims;
+  w->world_ = std::make_unique<PagedWorld>(*w->model_, po);
+  w->shader_ = std::make_unique<Shader>(w->world_->scene(), w->world_->tree());
+  w->caster_ = std::make_unique<FrustumCaster>(w->world_->scene(), w->world_->tree(), *w->shader_, options.threads);
+  w->caster_->set_leaf_pixels(options.leaf_pixels);
+  w->caster_->set_gate(w->world_.get());
+  if (options.oracle) w->oracle_ = std::make_unique<StoreOracle>(*w->model_);
+  return w;
+}
+
+Walkthrough::~Walkthrough() = default;
+
+void Walkthrough::start_image(bool shadows) {
+  world_->begin_frame(marks_);
+  image_shadows_ = shadows;
+  caster_->begin(view_, buffer_, marks_, true, shadows);
+}
+
+FrameReport Walkthrough::frame(const Camera& camera) {
+  const auto start = Clock::now();
+  const FrameBudget& budget = options_.budget;
+  const bool unbounded = budget.ms <= 0.0 && budget.samples == 0;
+  const bool wait_for_all = options_.sync_paging || unbounded;
+  const auto deadline = budget.ms > 0.0 ? start + std::chrono::duration_cast<Clock::duration>(
+                                                      std::chrono::duration<double, std::milli>(budget.ms))
+                                        : Clock::time_point::max();
+  FrameReport r;
+  r.frame = frames_++;
+  const bool still = last_camera_ && same_camera(*last_camera_, camera);
+  const bool lights = shader_->effects().shadows && options_.shadows;
+  if (!still) {
+    view_ = View(camera, options_.width, options_.height);
+    start_image(false);
+  } else if (caster_->complete() && lights && !image_shadows_) {
+    start_image(true);  // the camera stopped and the image is complete: now the deferred effects
+  } else {
+    r.continued = true;
+  }
+  last_camera_ = camera;
+
+  Counters counters;
+  int restarts = 0;
+  while (true) {
+    if (world_->sync(deadline)) {
+      caster_->tree_changed();
+      caster_->resume_parked();
+    }
+    if (caster_->complete()) break;
+    if (Clock::now() >= deadline) break;
+    if (budget.samples > 0 && counters.samples >= budget.samples) break;
+    if (caster_->runnable()) {
+      FrameBudget slice;
+      if (budget.ms > 0.0) slice.ms = std::max(0.01, std::chrono::duration<double, std::milli>(deadline - Clock::now()).count());
+      if (budget.samples > 0) slice.samples = budget.samples - counters.samples;
+      caster_->run(slice, counters);
+      continue;
+    }
+    // Only parked work is left.
+    if (world_->pending() == 0) {
+      // What it waits for was dropped for lack of room. Free what this image has not touched
+      // (cells of earlier images) once and start the image again; when the image alone fills
+      // the budget, the frame degrades: the missing cells' pixels stay reconstructed.
+      if (restarts++ < 1 && world_->reclaim_untouched(marks_)) {
+        caster_->begin(view_, buffer_, marks_, true, image_shadows_);
+        continue;
+      }
+      break;
+    }
+    r.stall_ms += world_->wait_for_pages(wait_for_all ? Clock::time_point::max() : deadline);
+  }
+  reconstruct(buffer_, shader_->background());
+
+  const PagingCounters paging = world_->take_counters();
+  const store::PageCacheStats cache = world_->cache_stats();
+  r.cells_touched = world_->end_frame(marks_);
+  r.cells_paged_in = paging.cells_paged_in;
+  r.bytes_read = cache.bytes_read - last_bytes_read_;
+  last_bytes_read_ = cache.bytes_read;
+  r.resident_bytes = world_->resident_bytes();
+  r.pinned_bytes = world_->pinned_bytes() + world_->touched_bytes();
+  r.cache_budget = world_->budget_bytes();
+  r.primitives_tested = counters.primitives_tested;
+  r.ray_primitive_tests = counters.ray_primitive_tests;
+  r.rays = counters.rays;
+  r.samples = counters.samples;
+  r.shading_ops = counters.shading_ops;
+  r.shadow_rays = counters.shadow_rays;
+  r.pixels = view_.pixels();
+  for (size_t i = 0; i < r.pixels; ++i) r.image_samples += buffer_.confirmed(i) ? 1 : 0;
+  r.complete = caster_->complete();
+  r.shadows = image_shadows_;
+  r.parked = caster_->parked();
+  r.cells_evicted = paging.cells_evicted;
+  r.cells_dropped = paging.cells_dropped;
+  r.page_errors = cache.errors;
+  r.resident_cells = world_->resident_cells();
+  r.decode_ms = paging.decode_ms;
+  r.frame_ms = ms_since(start);
+  if (oracle_) {
+    oracle_frame_ = oracle_->frame(view_, options_.threads);
+    r.oracle_cells = oracle_frame_->cells.size();
+    if (!oracle_frame_->cells.empty()) r.oracle_ratio = double(r.cells_touched) / double(oracle_frame_->cells.size());
+  }
+  return r;
+}
+
+std::vector<uint32_t> Walkthrough::ids() const {
+  std::vector<uint32_t> out(buffer_.size(), kNoPrim);
+  const Scene& scene = world_->scene();
+  for (size_t i = 0; i < out.size(); ++i) {
+    if (!buffer_.confirmed(i)) continue;
+    const uint32_t p = buffer_.prim(i);
+    if (p != kNoPrim) out[i] = scene.prims[p].source;
+  }
+  return out;
+}
+
+}  // namespace frontier

@@ -1,0 +1,128 @@
+// Walkthrough: the out-of-core frame loop of frontier-view — a store, a PagedWorld over it, a
+// FrustumCaster over the world, and one FrameReport per displayed frame.
+//
+// A displayed frame renders the camera within its budget (time or samples; without either it
+// runs until the image is complete). Frustum work that reaches a cell whose page is not in
+// memory is parked while the cache's loader reads it; between job slices the arrived cells are
+// decoded, refined and grafted, and the parked work resumes (paper §5.2's queue with paging).
+// Without --sync-paging a frame never waits for the disk while other work is left; when only
+// parked work is left and time remains it waits (that time is stall_ms). With sync paging it
+// waits until the image is complete, so its ids equal an in-memory render of the same store.
+//
+// Progressive (§5.3): a frame whose camera equals the previous one continues the same image
+// (more samples) instead of starting a new one; the first complete image of a still camera
+// is followed by one with the deferred effects (shadows) if the scene declares lights. While
+// the camera moves, images have immediate effects only.
+//
+// The report's fields are DESIGN.md's "Working set, defined once", counted in store cells (a
+// store cell refined into a subtree counts once): see FrameReport.
+#pragma once
+
+#include "src/counters.h"
+#include "src/frustum.h"
+#include "src/paged_world.h"
+#include "src/sample_buffer.h"
+#include "src/shading.h"
+#include "src/store_model.h"
+#include "src/store_oracle.h"
+#include "src/view.h"
+
+#include <nlohmann/json_fwd.hpp>
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace frontier {
+
+struct WalkOptions {
+  uint64_t cache_bytes = 512ull << 20;
+  int width = 640, height = 480;
+  int threads = 0;             // render threads (0: all cores)
+  FrameBudget budget;          // per displayed frame; neither set: run each image to completion
+  bool sync_paging = false;
+  bool oracle = false;         // compute oracle_cells (exact per-pixel rays) every frame
+  bool shadows = true;         // deferred shadows when the camera stops (scene must declare lights)
+  uint32_t cell_prims = 8;     // how a paged-in store cell is refined
+  int leaf_pixels = FrustumCaster::kDefaultLeafPixels;
+};
+
+struct FrameReport {
+  uint64_t frame = 0;
+  // DESIGN.md "Working set, defined once".
+  uint64_t cells_touched = 0;       // store cells a frustum or ray entered (in this image so far)
+  uint64_t cells_paged_in = 0;      // store cells decoded and grafted during this frame
+  uint64_t bytes_read = 0;          // page bytes read from the store file during this frame
+  uint64_t resident_bytes = 0;      // compressed pages in the cache + decoded cells
+  uint64_t pinned_bytes = 0;        // of those, what this image touched (not evictable now)
+  uint64_t cache_budget = 0;
+  uint64_t primitives_tested = 0;
+  uint64_t ray_primitive_tests = 0;
+  uint64_t rays = 0;
+  uint64_t samples = 0;             // pixels confirmed during this frame
+  double frame_ms = 0.0;
+  double stall_ms = 0.0;            // waiting for pages with nothing else to do
+  // More.
+  std::optional<uint64_t> oracle_cells;
+  std::optional<double> oracle_ratio;  // cells_touched / oracle_cells
+  uint64_t image_samples = 0;       // pixels confirmed in the image so far
+  uint64_t pixels = 0;
+  bool complete = false;            // every pixel of the image confirmed
+  bool continued = false;           // same camera as the previous frame: the image went on
+  bool shadows = false;             // the image has the deferred shadow effect
+  uint64_t parked = 0;              // parked jobs left at the end of the frame
+  uint64_t cells_evicted = 0;
+  uint64_t cells_dropped = 0;
+  uint64_t page_errors = 0;         // cumulative: pages that failed to read or decode
+  uint64_t resident_cells = 0;
+  uint64_t collision_queries = 0;   // filled in by the viewer's walk mode (0 without it)
+  double decode_ms = 0.0;
+  uint64_t shading_ops = 0;
+  uint64_t shadow_rays = 0;
+  nlohmann::json to_json() const;
+};
+
+class Walkthrough {
+ public:
+  static Result<std::unique_ptr<Walkthrough>> open(const std::string& store_path, const WalkOptions& options);
+  ~Walkthrough();
+
+  FrameReport frame(const Camera& camera);
+  // Changes the per-frame budget (pegging time or samples, paper §5.5) for the next frames.
+  void set_budget(const FrameBudget& budget) { options_.budget = budget; }
+  const FrameBudget& budget() const { return options_.budget; }
+
+  const StoreModel& model() const { return *model_; }
+  const PagedWorld& world() const { return *world_; }
+  const SampleBuffer& buffer() const { return buffer_; }
+  const View& view() const { return view_; }
+  // Per pixel: the source id of the first hit (kNoPrim: background or not sampled yet).
+  std::vector<uint32_t> ids() const;
+  // Store cells touched by the current image.
+  std::vector<uint32_t> touched_cells() const { return world_->touched_store_cells(marks_); }
+  // The oracle's last frame (only with options.oracle).
+  const OracleFrame* last_oracle() const { return oracle_frame_ ? &*oracle_frame_ : nullptr; }
+
+ private:
+  Walkthrough() = default;
+  void start_image(bool shadows);
+
+  WalkOptions options_;
+  std::unique_ptr<StoreModel> model_;
+  std::unique_ptr<PagedWorld> world_;
+  std::unique_ptr<Shader> shader_;
+  std::unique_ptr<FrustumCaster> caster_;
+  std::unique_ptr<StoreOracle> oracle_;
+  std::optional<OracleFrame> oracle_frame_;
+  SampleBuffer buffer_;
+  CellMarks marks_;
+  View view_;
+  std::optional<Camera> last_camera_;
+  bool image_shadows_ = false;
+  uint64_t frames_ = 0;
+  uint64_t last_bytes_read_ = 0;
+};
+
+}  // namespace frontier

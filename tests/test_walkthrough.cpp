@@ -1,0 +1,349 @@
+// The out-of-core walkthrough: paged frames equal brute force, the working set stays within the
+// cache budget and close to the oracle, parked work resumes, eviction and compaction keep the
+// world exact, a corrupted page is walked past, and frontier-view's headless report.
+#include "preprocess/build.h"
+#include "src/camera_path.h"
+#include "src/image.h"
+#include "src/paged_world.h"
+#include "src/store_model.h"
+#include "src/walkthrough.h"
+#include "store/page_file.h"
+#include "store/store_file.h"
+#include "tests/engine_util.h"
+#include "tests/process_util.h"
+#include "tests/test_files.h"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+
+#include <filesystem>
+#include <fstream>
+#include <set>
+
+namespace frontier {
+namespace {
+
+namespace fs = std::filesystem;
+using proc::run_binary;
+
+const fs::path& scratch() { return testing::scratch_dir("frontier_walk"); }
+using testing::spd;
+
+std::string store_of(const std::vector<std::string>& inputs, const std::string& name, CellCodec codec,
+                     uint32_t cell_prims) {
+  const std::string out = (scratch() / (name + ".frontier")).string();
+  if (fs::exists(out)) return out;
+  BuildOptions o;
+  o.inputs = inputs;
+  o.output = out;
+  o.codec = codec;
+  o.quiet = true;
+  o.threads = 2;
+  o.cell_prims = cell_prims;
+  auto report = build_store(o);
+  EXPECT_TRUE(report.is_ok()) << report.status().to_string();
+  return out;
+}
+
+// A generated building and a walk path through it (cached within the run).
+struct BuildingWalk {
+  std::string model, store, path;
+};
+const BuildingWalk& building_walk() {
+  static const BuildingWalk w = [] {
+    BuildingWalk b;
+    b.model = (scratch() / "building.ply").string();
+    auto r = run_binary(proc::gen_binary(), {"building", "--triangles", "60000", "-o", b.model, "--quiet"}, scratch());
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    b.path = (scratch() / "walk.cam").string();
+    r = run_binary(proc::gen_binary(),
+                   {"path", "--model", b.model, "--kind", "walk", "--frames", "24", "--step", "0.4", "-o", b.path},
+                   scratch());
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    b.store = store_of({b.model}, "building", CellCodec::Draco, 256);
+    return b;
+  }();
+  return w;
+}
+
+std::vector<Camera> walk_cameras() {
+  auto cams = read_camera_path(building_walk().path);
+  EXPECT_TRUE(cams.is_ok()) << cams.status().to_string();
+  return cams.is_ok() ? *cams : std::vector<Camera>{};
+}
+
+WalkOptions sync_options(int size, uint64_t cache) {
+  WalkOptions o;
+  o.width = size;
+  o.height = size;
+  o.threads = 2;
+  o.cache_bytes = cache;
+  o.sync_paging = true;
+  return o;
+}
+
+// With sync paging a paged frame is exact: its ids equal brute force over the input scene
+// (raw codec: the store holds the input primitives bit for bit), for the SPD scenes cut into
+// many small cells, from the scene camera and from a second camera after it.
+TEST(Walkthrough, SyncPagingFramesEqualBruteForce) {
+  for (const char* name : {"rings", "tree", "shells"}) {
+    SCOPED_TRACE(name);
+    Scene scene;
+    ASSERT_TRUE(load_scene(spd(name), scene).is_ok());
+    const std::string store = store_of({spd(name)}, std::string(name) + "_raw", CellCodec::Raw, 32);
+    auto walk = Walkthrough::open(store, sync_options(97, 64u << 20));
+    ASSERT_TRUE(walk.is_ok()) << walk.status().to_string();
+    Camera cam = scene.camera ? *scene.camera : automatic_camera(scene.bounds());
+    cam.width = cam.height = 0;
+    Camera moved = cam;
+    moved.eye = cam.eye + 0.25 * (cam.look_at - cam.eye);
+    for (const Camera& c : {cam, moved}) {
+      const FrameReport r = (*walk)->frame(c);
+      EXPECT_TRUE(r.complete);
+      EXPECT_EQ(r.image_samples, r.pixels);
+      EXPECT_GT(r.cells_paged_in + ((*walk)->world().resident_cells() > 0 ? 1 : 0), 0u);
+      std::vector<uint32_t> reference;
+      std::vector<uint8_t> tie;
+      testing::brute_reference(scene, (*walk)->view(), reference, tie);
+      const auto cmp = testing::compare_ids(reference, tie, (*walk)->ids(), 97);
+      EXPECT_EQ(cmp.mismatches, 0u) << cmp.first_mismatch;
+    }
+  }
+}
+
+// Nothing is paged before it is needed: the first frame pages in exactly the cells it touched
+// that have pages, and every touched cell with a page is resident afterwards.
+TEST(Walkthrough, PagesInOnlyWhatTheFrameTouches) {
+  const std::string store = store_of({spd("shells")}, "shells_raw", CellCodec::Raw, 32);
+  auto walk = Walkthrough::open(store, sync_options(64, 64u << 20));
+  ASSERT_TRUE(walk.is_ok());
+  const Camera cam = *(*walk)->model().info().camera;
+  const FrameReport r = (*walk)->frame(cam);
+  const auto touched = (*walk)->touched_cells();
+  EXPECT_EQ(touched.size(), r.cells_touched);
+  size_t with_pages = 0;
+  for (uint32_t c : touched) {
+    if ((*walk)->model().cells()[c].page == StoreCell::kNoPage) continue;
+    ++with_pages;
+    EXPECT_TRUE((*walk)->world().resident(c)) << "touched cell " << c << " not resident";
+  }
+  EXPECT_EQ(r.cells_paged_in, with_pages);
+  EXPECT_EQ((*walk)->world().resident_cells(), with_pages);
+  EXPECT_LT(with_pages, (*walk)->model().cells().size()) << "the view should not need every cell";
+  EXPECT_GT(r.bytes_read, 0u);
+}
+
+// A time budget far below what the first frame needs: frames end with parked work instead of
+// waiting; the same camera again continues the image, and it converges to the exact image.
+TEST(Walkthrough, ParkedWorkResumesAndConverges) {
+  Scene scene;
+  ASSERT_TRUE(load_scene(spd("tree"), scene).is_ok());
+  const std::string store = store_of({spd("tree")}, "tree_raw", CellCodec::Raw, 32);
+  WalkOptions o = sync_options(97, 64u << 20);
+  o.sync_paging = false;
+  o.budget.ms = 1.0;
+  auto walk = Walkthrough::open(store, o);
+  ASSERT_TRUE(walk.is_ok());
+  Camera cam = *scene.camera;
+  FrameReport first = (*walk)->frame(cam);
+  EXPECT_FALSE(first.complete) << "a 1 ms first frame cannot page in the whole view";
+  bool complete = false;
+  uint64_t last_samples = first.image_samples;
+  for (int f = 0; f < 2000 && !complete; ++f) {
+    const FrameReport r = (*walk)->frame(cam);
+    EXPECT_TRUE(r.continued);
+    EXPECT_GE(r.image_samples, last_samples) << "a continued image lost samples";
+    last_samples = r.image_samples;
+    complete = r.complete;
+  }
+  ASSERT_TRUE(complete);
+  std::vector<uint32_t> reference;
+  std::vector<uint8_t> tie;
+  testing::brute_reference(scene, (*walk)->view(), reference, tie);
+  const auto cmp = testing::compare_ids(reference, tie, (*walk)->ids(), 97);
+  EXPECT_EQ(cmp.mismatches, 0u) << cmp.first_mismatch;
+}
+
+// The building walk with a cache far smaller than the model: resident bytes never exceed the
+// budget, cells are evicted and compacted away, every frame is still exact (ids equal the
+// oracle's exact two-level walk), and the touched cells stay close to the oracle's.
+TEST(Walkthrough, SmallCacheStaysWithinBudgetAndExactAlongTheBuildingWalk) {
+  const BuildingWalk& b = building_walk();
+  auto model = StoreModel::open(b.store);
+  ASSERT_TRUE(model.is_ok());
+  uint64_t page_bytes = 0;
+  for (const StoreCell& c : (*model)->cells()) {
+    if (c.page != StoreCell::kNoPage) page_bytes += (*model)->reader().page_handle(c.page).size;
+  }
+  WalkOptions o = sync_options(96, 16u << 20);
+  o.oracle = true;
+  auto walk = Walkthrough::open(b.store, o);
+  ASSERT_TRUE(walk.is_ok());
+  uint64_t evicted = 0;
+  double worst = 0.0;
+  for (const Camera& cam : walk_cameras()) {
+    const FrameReport r = (*walk)->frame(cam);
+    SCOPED_TRACE(r.to_json().dump());
+    EXPECT_LE(r.resident_bytes, r.cache_budget) << "frame " << r.frame;
+    EXPECT_TRUE(r.complete) << "frame " << r.frame;
+    ASSERT_TRUE(r.oracle_cells.has_value());
+    ASSERT_GT(*r.oracle_cells, 0u);
+    worst = std::max(worst, double(r.cells_touched) / double(*r.oracle_cells));
+    // Every cell an exact ray passes is one the renderer touched.
+    const auto touched = (*walk)->touched_cells();
+    const std::set<uint32_t> t(touched.begin(), touched.end());
+    for (uint32_t c : (*walk)->last_oracle()->cells) EXPECT_TRUE(t.count(c)) << "oracle cell " << c << " untouched";
+    const auto ids = (*walk)->ids();
+    EXPECT_EQ(ids, (*walk)->last_oracle()->ids) << "frame " << r.frame;
+    evicted += r.cells_evicted;
+  }
+  EXPECT_GT(evicted, 0u) << "the budget was meant to force eviction";
+  EXPECT_LT(worst, 1.3) << "cells_touched / oracle_cells";
+  (void)page_bytes;
+}
+
+// A cache smaller than one view's cells: frames degrade (fewer samples, cells dropped) instead
+// of failing, and resident bytes still never exceed the budget.
+TEST(Walkthrough, CacheSmallerThanTheViewDegrades) {
+  const BuildingWalk& b = building_walk();
+  WalkOptions o = sync_options(96, 2u << 20);
+  auto walk = Walkthrough::open(b.store, o);
+  ASSERT_TRUE(walk.is_ok());
+  uint64_t dropped = 0, incomplete = 0;
+  for (const Camera& cam : walk_cameras()) {
+    const FrameReport r = (*walk)->frame(cam);
+    SCOPED_TRACE(r.to_json().dump());
+    EXPECT_LE(r.resident_bytes, r.cache_budget);
+    EXPECT_GT(r.image_samples, 0u);
+    dropped += r.cells_dropped;
+    incomplete += r.complete ? 0 : 1;
+  }
+  EXPECT_GT(dropped, 0u) << "the budget was meant to be too small";
+  EXPECT_GT(incomplete, 0u);
+}
+
+// A page with a flipped byte: the walk goes on to the end, the error is counted, and the cell
+// is drawn as missing (no crash, no exception).
+TEST(Walkthrough, CorruptedPageIsCountedAndTheWalkGoesOn) {
+  const BuildingWalk& b = building_walk();
+  const std::string bad = (scratch() / "corrupt.frontier").string();
+  fs::copy_file(b.store, bad, fs::copy_options::overwrite_existing);
+  auto model = StoreModel::open(bad);
+  ASSERT_TRUE(model.is_ok());
+  // Damage every fourth page the walk's first frame needs, so the walk must meet one.
+  auto probe = Walkthrough::open(b.store, sync_options(64, 64u << 20));
+  ASSERT_TRUE(probe.is_ok());
+  const auto cams = walk_cameras();
+  ASSERT_FALSE(cams.empty());
+  (*probe)->frame(cams.front());
+  std::vector<uint64_t> offsets;
+  size_t k = 0;
+  for (uint32_t c : (*probe)->touched_cells()) {
+    const StoreCell& cell = (*model)->cells()[c];
+    if (cell.page == StoreCell::kNoPage || k++ % 4 != 0) continue;
+    const auto h = (*model)->reader().page_handle(cell.page);
+    offsets.push_back(h.offset + h.size / 2);
+  }
+  ASSERT_FALSE(offsets.empty());
+  {
+    std::fstream f(bad, std::ios::in | std::ios::out | std::ios::binary);
+    for (uint64_t off : offsets) {
+      f.seekg(static_cast<std::streamoff>(off));
+      char byte = 0;
+      f.read(&byte, 1);
+      byte = static_cast<char>(byte ^ 0x5A);
+      f.seekp(static_cast<std::streamoff>(off));
+      f.write(&byte, 1);
+    }
+  }
+  auto walk = Walkthrough::open(bad, sync_options(64, 64u << 20));
+  ASSERT_TRUE(walk.is_ok());
+  FrameReport last;
+  for (const Camera& cam : cams) last = (*walk)->frame(cam);
+  EXPECT_EQ(last.frame + 1, cams.size());
+  EXPECT_GE(last.page_errors, offsets.size());
+  EXPECT_TRUE(last.complete);
+}
+
+// frontier-view --headless --path ... --report: one JSON line per frame with every field of the
+// working-set definition, then a summary; resident_bytes within the budget.
+TEST(ViewCommand, HeadlessWalkWritesTheReport) {
+  const BuildingWalk& b = building_walk();
+  const std::string report = (scratch() / "frames.jsonl").string();
+  const std::string pngs = (scratch() / "pngs").string();
+  const auto r = run_binary(FRONTIER_VIEW_PATH,
+                            {b.store, "--headless", "--path", b.path, "--frames", "10", "--size", "80x60", "--cache",
+                             "8M", "--report", report, "--png-dir", pngs, "--oracle", "--sync-paging", "--threads", "2"},
+                            scratch());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  std::ifstream in(report);
+  std::string line;
+  int frames = 0;
+  bool summary = false;
+  while (std::getline(in, line)) {
+    const auto j = nlohmann::json::parse(line);
+    if (j.contains("summary")) {
+      summary = true;
+      for (const char* k : {"p50_frame_ms", "p95_frame_ms", "mean_samples", "peak_rss_mib", "total_bytes_read",
+                            "mean_touched_oracle_ratio"}) {
+        EXPECT_TRUE(j["summary"].contains(k)) << k;
+      }
+      continue;
+    }
+    EXPECT_EQ(j["frame"].get<int>(), frames);
+    for (const char* k : {"cells_touched", "cells_paged_in", "bytes_read", "resident_bytes", "pinned_bytes",
+                          "cache_budget", "primitives_tested", "ray_primitive_tests", "rays", "samples", "frame_ms",
+                          "stall_ms", "oracle_cells", "collision_queries"}) {
+      EXPECT_TRUE(j.contains(k)) << k;
+    }
+    EXPECT_LE(j["resident_bytes"].get<uint64_t>(), j["cache_budget"].get<uint64_t>());
+    EXPECT_EQ(j["collision_queries"].get<uint64_t>(), 0u) << "no walk mode, no collision work";
+    ++frames;
+  }
+  EXPECT_EQ(frames, 10);
+  EXPECT_TRUE(summary);
+  EXPECT_FALSE(fs::is_empty(pngs));
+}
+
+// The window under Xvfb (CI installs xvfb): opens, renders frames with scripted keys... here
+// with --frames N and a path, exits cleanly, and the saved frame (HUD included) is not blank.
+TEST(ViewCommand, WindowRendersUnderXvfbAndExits) {
+  const BuildingWalk& b = building_walk();
+  ASSERT_EQ(std::system("test -x /usr/bin/xvfb-run"), 0) << "xvfb-run missing: .ci/install-deps installs xvfb";
+  const std::string shot = (scratch() / "window.png").string();
+  const std::string report = (scratch() / "window.jsonl").string();
+  const auto r = run_binary("/usr/bin/xvfb-run", {"-a", "-s", "-screen 0 1024x768x24", FRONTIER_VIEW_PATH, b.store, "--path",
+                                         b.path, "--frames", "12", "--size", "160x120", "--frame-ms", "40", "--png",
+                                         shot, "--report", report, "--threads", "2"},
+                            scratch());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  int w = 0, h = 0;
+  std::vector<Rgb> pixels;
+  ASSERT_TRUE(read_png(shot, w, h, pixels).is_ok());
+  ASSERT_GT(w * h, 0);
+  std::set<int> levels;
+  for (const Rgb& p : pixels) levels.insert(int(p.r * 255.0f) * 65536 + int(p.g * 255.0f) * 256 + int(p.b * 255.0f));
+  EXPECT_GT(levels.size(), 50u) << "the saved frame looks blank";
+  std::ifstream in(report);
+  std::string line;
+  int frames = 0;
+  while (std::getline(in, line)) frames += nlohmann::json::parse(line).contains("frame") ? 1 : 0;
+  EXPECT_EQ(frames, 12);
+}
+
+TEST(ViewCommand, BadOptionsFailCleanly) {
+  const BuildingWalk& b = building_walk();
+  auto r = run_binary(FRONTIER_VIEW_PATH, {b.store, "--headless", "--cache", "lots"}, scratch());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--cache"), std::string::npos) << r.err;
+  r = run_binary(FRONTIER_VIEW_PATH, {b.store, "--headless", "--path", "/nonexistent.cam", "--report", "x"}, scratch());
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("nonexistent.cam"), std::string::npos) << r.err;
+  r = run_binary(FRONTIER_VIEW_PATH, {b.store, "--headless", "--walk", "--path", b.path, "--report", "x"}, scratch());
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("walk"), std::string::npos) << r.err;
+}
+
+}  // namespace
+}  // namespace frontier
