@@ -159,7 +159,7 @@ bool PagedWorld::sync(std::chrono::steady_clock::time_point deadline) {
   std::vector<uint32_t> later;
   const size_t batch = std::max<size_t>(4, 2 * static_cast<size_t>(tbb::info::default_concurrency()));
   for (size_t b = 0; b < ready.size(); b += batch) {
-    if (b > 0 && std::chrono::steady_clock::now() >= deadline) {
+    if (std::chrono::steady_clock::now() >= deadline) {
       later.insert(later.end(), ready.begin() + static_cast<std::ptrdiff_t>(b), ready.end());
       break;
     }

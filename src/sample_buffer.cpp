@@ -1,7 +1,9 @@
 // SampleBuffer, CellMarks and the §5.4 reconstruction.
 #include "src/sample_buffer.h"
 
-#include <functional>
+#include <tbb/parallel_for.h>
+
+#include <array>
 
 namespace frontier {
 
@@ -51,6 +53,98 @@ Rgb mix4(Rgb a, Rgb b, Rgb c, Rgb d) {
           0.25f * (a.b + b.b + c.b + d.b)};
 }
 
+// The recursive interpolation of reconstruct(), as plain calls (a std::function per level cost
+// about 30 ns per pixel).
+struct Interpolation {
+  const SampleBuffer& buf;
+  std::vector<Rgb>& img;
+  std::vector<uint8_t>& known;
+  int w;
+
+  Rgb value(int x, int y) const { return img[static_cast<size_t>(y) * size_t(w) + size_t(x)]; }
+  void settle(int x, int y, Rgb interpolated) {
+    const size_t i = static_cast<size_t>(y) * size_t(w) + size_t(x);
+    if (known[i]) return;
+    img[i] = buf.confirmed(i) ? buf.color(i) : interpolated;
+    known[i] = 1;
+  }
+  // The 1-D recursion fill() runs along a rectangle's edge (the same midpoints and values).
+  void fill_edge(int x0, int y0, int x1, int y1) {
+    if (y0 == y1) {
+      if (x1 - x0 < 2) return;
+      const int xm = (x0 + x1) / 2;
+      settle(xm, y0, mix(value(x0, y0), value(x1, y0)));
+      fill_edge(x0, y0, xm, y0);
+      fill_edge(xm, y0, x1, y0);
+    } else {
+      if (y1 - y0 < 2) return;
+      const int ym = (y0 + y1) / 2;
+      settle(x0, ym, mix(value(x0, y0), value(x0, y1)));
+      fill_edge(x0, y0, x0, ym);
+      fill_edge(x0, ym, x0, y1);
+    }
+  }
+  // Recurses like fill() until rectangles have at most `area` pixels, which are collected
+  // (their corners settled) instead of filled.
+  void split_until(int x0, int y0, int x1, int y1, long area, std::vector<std::array<int, 4>>& out) {
+    const bool split_x = x1 - x0 >= 2, split_y = y1 - y0 >= 2;
+    if ((!split_x && !split_y) || long(x1 - x0 + 1) * long(y1 - y0 + 1) <= area) {
+      out.push_back({x0, y0, x1, y1});
+      return;
+    }
+    const int xm = split_x ? (x0 + x1) / 2 : x0, ym = split_y ? (y0 + y1) / 2 : y0;
+    const Rgb c00 = value(x0, y0), c10 = value(x1, y0), c01 = value(x0, y1), c11 = value(x1, y1);
+    if (split_x) {
+      settle(xm, y0, mix(c00, c10));
+      settle(xm, y1, mix(c01, c11));
+    }
+    if (split_y) {
+      settle(x0, ym, mix(c00, c01));
+      settle(x1, ym, mix(c10, c11));
+    }
+    if (split_x && split_y) {
+      settle(xm, ym, mix4(c00, c10, c01, c11));
+      split_until(x0, y0, xm, ym, area, out);
+      split_until(xm, y0, x1, ym, area, out);
+      split_until(x0, ym, xm, y1, area, out);
+      split_until(xm, ym, x1, y1, area, out);
+    } else if (split_x) {
+      split_until(x0, y0, xm, y1, area, out);
+      split_until(xm, y0, x1, y1, area, out);
+    } else {
+      split_until(x0, y0, x1, ym, area, out);
+      split_until(x0, ym, x1, y1, area, out);
+    }
+  }
+  void fill(int x0, int y0, int x1, int y1) {
+    const bool split_x = x1 - x0 >= 2, split_y = y1 - y0 >= 2;
+    if (!split_x && !split_y) return;
+    const int xm = split_x ? (x0 + x1) / 2 : x0, ym = split_y ? (y0 + y1) / 2 : y0;
+    const Rgb c00 = value(x0, y0), c10 = value(x1, y0), c01 = value(x0, y1), c11 = value(x1, y1);
+    if (split_x) {
+      settle(xm, y0, mix(c00, c10));
+      settle(xm, y1, mix(c01, c11));
+    }
+    if (split_y) {
+      settle(x0, ym, mix(c00, c01));
+      settle(x1, ym, mix(c10, c11));
+    }
+    if (split_x && split_y) {
+      settle(xm, ym, mix4(c00, c10, c01, c11));
+      fill(x0, y0, xm, ym);
+      fill(xm, y0, x1, ym);
+      fill(x0, ym, xm, y1);
+      fill(xm, ym, x1, y1);
+    } else if (split_x) {
+      fill(x0, y0, xm, y1);
+      fill(xm, y0, x1, y1);
+    } else {
+      fill(x0, y0, x1, ym);
+      fill(x0, ym, x1, y1);
+    }
+  }
+};
+
 }  // namespace
 
 void reconstruct(SampleBuffer& buf, Rgb fallback) {
@@ -77,45 +171,26 @@ void reconstruct(SampleBuffer& buf, Rgb fallback) {
       return;
     }
   }
-  auto value = [&](int x, int y) -> Rgb& { return img[static_cast<size_t>(y) * w + x]; };
-  auto settle = [&](int x, int y, Rgb interpolated) {
-    const size_t i = static_cast<size_t>(y) * w + x;
-    if (known[i]) return;
-    img[i] = buf.confirmed(i) ? buf.color(i) : interpolated;
-    known[i] = 1;
-  };
-  settle(0, 0, mean);
-  settle(w - 1, 0, mean);
-  settle(0, h - 1, mean);
-  settle(w - 1, h - 1, mean);
-  std::function<void(int, int, int, int)> fill = [&](int x0, int y0, int x1, int y1) {
-    const bool split_x = x1 - x0 >= 2, split_y = y1 - y0 >= 2;
-    if (!split_x && !split_y) return;
-    const int xm = split_x ? (x0 + x1) / 2 : x0, ym = split_y ? (y0 + y1) / 2 : y0;
-    const Rgb c00 = value(x0, y0), c10 = value(x1, y0), c01 = value(x0, y1), c11 = value(x1, y1);
-    if (split_x) {
-      settle(xm, y0, mix(c00, c10));
-      settle(xm, y1, mix(c01, c11));
-    }
-    if (split_y) {
-      settle(x0, ym, mix(c00, c01));
-      settle(x1, ym, mix(c10, c11));
-    }
-    if (split_x && split_y) settle(xm, ym, mix4(c00, c10, c01, c11));
-    if (split_x && split_y) {
-      fill(x0, y0, xm, ym);
-      fill(xm, y0, x1, ym);
-      fill(x0, ym, xm, y1);
-      fill(xm, ym, x1, y1);
-    } else if (split_x) {
-      fill(x0, y0, xm, y1);
-      fill(xm, y0, x1, y1);
-    } else {
-      fill(x0, y0, x1, ym);
-      fill(x0, ym, x1, y1);
-    }
-  };
-  fill(0, 0, w - 1, h - 1);
+  Interpolation ip{buf, img, known, w};
+  ip.settle(0, 0, mean);
+  ip.settle(w - 1, 0, mean);
+  ip.settle(0, h - 1, mean);
+  ip.settle(w - 1, h - 1, mean);
+  // Tiles of about 32 × 32 are filled in parallel: their edges, which neighbours share, are
+  // settled first (by the same 1-D recursion each side would run), so the tiles' writes are
+  // disjoint.
+  std::vector<std::array<int, 4>> tiles;
+  ip.split_until(0, 0, w - 1, h - 1, 1024, tiles);
+  for (const auto& t : tiles) {
+    ip.fill_edge(t[0], t[1], t[2], t[1]);
+    ip.fill_edge(t[0], t[3], t[2], t[3]);
+    ip.fill_edge(t[0], t[1], t[0], t[3]);
+    ip.fill_edge(t[2], t[1], t[2], t[3]);
+  }
+  tbb::parallel_for(size_t(0), tiles.size(), [&](size_t k) {
+    Interpolation local = ip;
+    local.fill(tiles[k][0], tiles[k][1], tiles[k][2], tiles[k][3]);
+  });
 }
 
 }  // namespace frontier

@@ -23,6 +23,7 @@ double ms_since(Clock::time_point t) { return std::chrono::duration<double, std:
 
 nlohmann::json FrameReport::to_json() const {
   nlohmann::json j = {{"frame", frame},
+                      {"eye", {eye.x, eye.y, eye.z}},
                       {"cells_touched", cells_touched},
                       {"cells_paged_in", cells_paged_in},
                       {"bytes_read", bytes_read},
@@ -86,11 +87,15 @@ FrameReport Walkthrough::frame(const Camera& camera) {
   const FrameBudget& budget = options_.budget;
   const bool unbounded = budget.ms <= 0.0 && budget.samples == 0;
   const bool wait_for_all = options_.sync_paging || unbounded;
+  // A pegged frame time covers everything: the job queue stops early by what reconstruction
+  // and bookkeeping took lately (a running estimate), so the frame ends on time.
+  const double work_ms = std::max(0.5 * budget.ms, budget.ms - finish_ms_);
   const auto deadline = budget.ms > 0.0 ? start + std::chrono::duration_cast<Clock::duration>(
-                                                      std::chrono::duration<double, std::milli>(budget.ms))
+                                                      std::chrono::duration<double, std::milli>(work_ms))
                                         : Clock::time_point::max();
   FrameReport r;
   r.frame = frames_++;
+  r.eye = camera.eye;
   const bool still = last_camera_ && same_camera(*last_camera_, camera);
   const bool lights = shader_->effects().shadows && options_.shadows;
   if (!still) {
@@ -133,6 +138,7 @@ FrameReport Walkthrough::frame(const Camera& camera) {
     }
     r.stall_ms += world_->wait_for_pages(wait_for_all ? Clock::time_point::max() : deadline);
   }
+  const auto finish_start = Clock::now();
   reconstruct(buffer_, shader_->background());
 
   const PagingCounters paging = world_->take_counters();
@@ -161,6 +167,10 @@ FrameReport Walkthrough::frame(const Camera& camera) {
   r.resident_cells = world_->resident_cells();
   r.decode_ms = paging.decode_ms;
   r.frame_ms = ms_since(start);
+  // The estimate follows increases at once and decreases slowly (a late frame costs more
+  // than a few samples).
+  const double finish = ms_since(finish_start);
+  finish_ms_ = finish > finish_ms_ ? finish : 0.9 * finish_ms_ + 0.1 * finish;
   if (oracle_) {
     oracle_frame_ = oracle_->frame(view_, options_.threads);
     r.oracle_cells = oracle_frame_->cells.size();

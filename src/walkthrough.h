@@ -51,6 +51,7 @@ struct WalkOptions {
 
 struct FrameReport {
   uint64_t frame = 0;
+  Vec3 eye{0.0};                    // the camera's eye (walk mode: after collision)
   // DESIGN.md "Working set, defined once".
   uint64_t cells_touched = 0;       // store cells a frustum or ray entered (in this image so far)
   uint64_t cells_paged_in = 0;      // store cells decoded and grafted during this frame
@@ -123,6 +124,7 @@ class Walkthrough {
   bool image_shadows_ = false;
   uint64_t frames_ = 0;
   uint64_t last_bytes_read_ = 0;
+  double finish_ms_ = 0.0;  // recent time from the end of the job queue to the end of a frame
 };
 
 }  // namespace frontier

@@ -100,6 +100,90 @@ TEST(Progressive, SampleBudgetLeavesSamplesSpreadOverTheScreen) {
   for (size_t q : quarter) EXPECT_GT(q, 0u);
 }
 
+// The §5.4 recursion written plainly (sequential, one rectangle at a time): reconstruct() fills
+// tiles in parallel and must give exactly this, for every size and sample pattern.
+void reference_fill(const SampleBuffer& buf, std::vector<Rgb>& img, std::vector<uint8_t>& known, int w, int x0,
+                    int y0, int x1, int y1) {
+  auto at = [&](int x, int y) { return size_t(y) * size_t(w) + size_t(x); };
+  auto settle = [&](int x, int y, Rgb v) {
+    const size_t i = at(x, y);
+    if (known[i]) return;
+    img[i] = buf.confirmed(i) ? buf.color(i) : v;
+    known[i] = 1;
+  };
+  auto mix = [](Rgb a, Rgb b) { return Rgb{0.5f * (a.r + b.r), 0.5f * (a.g + b.g), 0.5f * (a.b + b.b)}; };
+  const bool sx = x1 - x0 >= 2, sy = y1 - y0 >= 2;
+  if (!sx && !sy) return;
+  const int xm = sx ? (x0 + x1) / 2 : x0, ym = sy ? (y0 + y1) / 2 : y0;
+  const Rgb a = img[at(x0, y0)], b = img[at(x1, y0)], c = img[at(x0, y1)], d = img[at(x1, y1)];
+  if (sx) {
+    settle(xm, y0, mix(a, b));
+    settle(xm, y1, mix(c, d));
+  }
+  if (sy) {
+    settle(x0, ym, mix(a, c));
+    settle(x1, ym, mix(b, d));
+  }
+  if (sx && sy) {
+    settle(xm, ym, Rgb{0.25f * (a.r + b.r + c.r + d.r), 0.25f * (a.g + b.g + c.g + d.g), 0.25f * (a.b + b.b + c.b + d.b)});
+    reference_fill(buf, img, known, w, x0, y0, xm, ym);
+    reference_fill(buf, img, known, w, xm, y0, x1, ym);
+    reference_fill(buf, img, known, w, x0, ym, xm, y1);
+    reference_fill(buf, img, known, w, xm, ym, x1, y1);
+  } else if (sx) {
+    reference_fill(buf, img, known, w, x0, y0, xm, y1);
+    reference_fill(buf, img, known, w, xm, y0, x1, y1);
+  } else {
+    reference_fill(buf, img, known, w, x0, y0, x1, ym);
+    reference_fill(buf, img, known, w, x0, ym, x1, y1);
+  }
+}
+
+TEST(Reconstruct, ParallelTilesEqualTheSequentialRecursion) {
+  std::mt19937_64 rng(5);
+  for (const auto& [w, h] : std::vector<std::pair<int, int>>{{640, 480}, {97, 301}, {1, 50}, {3, 2}, {257, 129}}) {
+    for (double density : {0.001, 0.05, 0.5}) {
+      SampleBuffer buf;
+      buf.resize(w, h);
+      buf.begin_frame();
+      std::uniform_real_distribution<double> u(0.0, 1.0);
+      double r = 0, g = 0, bsum = 0;
+      size_t n = 0;
+      for (size_t i = 0; i < buf.size(); ++i) {
+        if (u(rng) >= density || !buf.claim(i)) continue;
+        const Rgb c{float(u(rng)), float(u(rng)), float(u(rng))};
+        buf.set(i, 0, 1.0, c);
+        r += c.r;
+        g += c.g;
+        bsum += c.b;
+        ++n;
+      }
+      const Rgb fallback{0.1f, 0.2f, 0.3f};
+      const Rgb mean = n ? Rgb{float(r / n), float(g / n), float(bsum / n)} : fallback;
+      std::vector<Rgb> expect(buf.size());
+      std::vector<uint8_t> known(buf.size(), 0);
+      auto corner = [&](int x, int y) {
+        const size_t i = size_t(y) * size_t(w) + size_t(x);
+        if (known[i]) return;
+        expect[i] = buf.confirmed(i) ? buf.color(i) : mean;
+        known[i] = 1;
+      };
+      corner(0, 0);
+      corner(w - 1, 0);
+      corner(0, h - 1);
+      corner(w - 1, h - 1);
+      reference_fill(buf, expect, known, w, 0, 0, w - 1, h - 1);
+      reconstruct(buf, fallback);
+      for (size_t i = 0; i < buf.size(); ++i) {
+        ASSERT_TRUE(known[i]) << "reference left pixel " << i;
+        ASSERT_EQ(buf.image()[i].r, expect[i].r) << w << "x" << h << " density " << density << " pixel " << i;
+        ASSERT_EQ(buf.image()[i].g, expect[i].g);
+        ASSERT_EQ(buf.image()[i].b, expect[i].b);
+      }
+    }
+  }
+}
+
 TEST(Effects, NoLightsMeansHeadlightAndNoShadowRays) {
   const Scene scene = lit_scene(false, false);
   const KdTree tree = KdTree::build(scene, {});

@@ -3,6 +3,8 @@
 // world exact, a corrupted page is walked past, and frontier-view's headless report.
 #include "preprocess/build.h"
 #include "src/camera_path.h"
+#include "src/ray_walk.h"
+#include "src/collision_grid.h"
 #include "src/image.h"
 #include "src/paged_world.h"
 #include "src/store_model.h"
@@ -221,6 +223,158 @@ TEST(Walkthrough, CacheSmallerThanTheViewDegrades) {
   }
   EXPECT_GT(dropped, 0u) << "the budget was meant to be too small";
   EXPECT_GT(incomplete, 0u);
+}
+
+// §5.3: a still camera refines its image to completion with immediate effects only, then
+// renders it again with the deferred shadows; moving drops back to immediate effects. A scene
+// without lights never casts a shadow ray.
+TEST(Walkthrough, StillCameraRefinesThenAddsDeferredShadows) {
+  Scene scene;
+  ASSERT_TRUE(load_scene(spd("tree"), scene).is_ok());
+  ASSERT_FALSE(scene.lights.empty());
+  const std::string store = store_of({spd("tree")}, "walk_tree_raw", CellCodec::Raw, 32);
+  WalkOptions o = sync_options(64, 64u << 20);
+  o.sync_paging = false;  // no budget: each frame runs to completion anyway
+  auto walk = Walkthrough::open(store, o);
+  ASSERT_TRUE(walk.is_ok());
+  const Camera cam = *scene.camera;
+  FrameReport r = (*walk)->frame(cam);
+  EXPECT_TRUE(r.complete);
+  EXPECT_FALSE(r.shadows);
+  EXPECT_EQ(r.shadow_rays, 0u) << "a moving (first) frame has immediate effects only";
+  r = (*walk)->frame(cam);
+  EXPECT_TRUE(r.complete);
+  EXPECT_TRUE(r.shadows);
+  EXPECT_FALSE(r.continued);
+  EXPECT_GT(r.shadow_rays, 0u);
+  r = (*walk)->frame(cam);
+  EXPECT_TRUE(r.continued);
+  EXPECT_EQ(r.samples, 0u) << "a complete image needs no more work";
+  Camera moved = cam;
+  moved.eye += 0.1 * (cam.look_at - cam.eye);
+  r = (*walk)->frame(moved);
+  EXPECT_FALSE(r.shadows);
+  EXPECT_EQ(r.shadow_rays, 0u);
+
+  // The generated building declares no lights.
+  auto plain = Walkthrough::open(building_walk().store, sync_options(48, 64u << 20));
+  ASSERT_TRUE(plain.is_ok());
+  ASSERT_TRUE((*plain)->model().info().lights.empty());
+  const Camera c = walk_cameras().front();
+  for (int f = 0; f < 3; ++f) EXPECT_EQ((*plain)->frame(c).shadow_rays, 0u);
+}
+
+// A walkable store of `model`, and its distance grid.
+struct WalkableStore {
+  std::string path;
+  std::unique_ptr<CollisionGrid> grid;
+  double radius = 0.0;
+};
+WalkableStore walkable_store(const std::string& model, const std::string& name) {
+  WalkableStore w;
+  w.path = (scratch() / (name + ".frontier")).string();
+  BuildOptions bo;
+  bo.inputs = {model};
+  bo.output = w.path;
+  bo.quiet = true;
+  bo.threads = 2;
+  bo.cell_prims = 256;
+  bo.walkable = true;
+  auto built = build_store(bo);
+  EXPECT_TRUE(built.is_ok()) << built.status().to_string();
+  auto m = StoreModel::open(w.path);
+  EXPECT_TRUE(m.is_ok());
+  if (!m.is_ok()) return w;
+  auto bytes = (*m)->reader().read_section(kSdfSection);
+  EXPECT_TRUE(bytes.is_ok());
+  auto grid = CollisionGrid::load(*bytes);
+  EXPECT_TRUE(grid.is_ok());
+  if (grid.is_ok()) w.grid = std::make_unique<CollisionGrid>(std::move(*grid));
+  w.radius = (*m)->info().walk_radius;
+  return w;
+}
+
+// 60 frames of 0.25 m from `start` along the horizontal direction `dir`, looking that way.
+std::string path_along(const Vec3& start, const Vec3& dir, const std::string& name) {
+  std::vector<Camera> path;
+  for (int f = 0; f < 60; ++f) {
+    Camera c;
+    c.eye = start + dir * (0.25 * f);
+    c.look_at = c.eye + dir;
+    c.up = Vec3(0.0, 0.0, 1.0);
+    path.push_back(c);
+  }
+  const std::string cam = (scratch() / (name + ".cam")).string();
+  EXPECT_TRUE(write_camera_path(cam, path).is_ok());
+  return cam;
+}
+
+// Walks `cam` through `store` with frontier-view; returns the last frame's eye and collision
+// queries.
+std::pair<Vec3, uint64_t> walk_to_end(const std::string& store, const std::string& cam, bool walk_mode) {
+  const std::string report = (scratch() / "walk_end.jsonl").string();
+  std::vector<std::string> args = {store, "--headless", "--path", cam, "--size", "32x24", "--report", report};
+  if (walk_mode) args.push_back("--walk");
+  const auto r = run_binary(FRONTIER_VIEW_PATH, args, scratch());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  std::ifstream in(report);
+  std::string line;
+  std::pair<Vec3, uint64_t> out{Vec3(0.0), 0};
+  while (std::getline(in, line)) {
+    const auto j = nlohmann::json::parse(line);
+    if (!j.contains("eye")) continue;
+    out.first = Vec3(j["eye"][0].get<double>(), j["eye"][1].get<double>(), j["eye"][2].get<double>());
+    out.second = j["collision_queries"].get<uint64_t>();
+  }
+  return out;
+}
+
+// Walk mode on a path aimed straight at a wall (a floor and one wall, z up): the eye stops at
+// its radius from the wall instead of passing through; without --walk it goes through and no
+// collision query is made.
+TEST(ViewCommand, WalkModeStopsTheEyeAtItsRadiusFromAWall) {
+  const std::string off = (scratch() / "wall.off").string();
+  {
+    std::ofstream f(off);
+    f << "OFF\n8 2 0\n0 -10 0\n20 -10 0\n20 10 0\n0 10 0\n8 -10 0\n8 10 0\n8 10 3\n8 -10 3\n"
+      << "4 0 1 2 3\n4 4 5 6 7\n";
+  }
+  const WalkableStore w = walkable_store(off, "wall");
+  ASSERT_TRUE(w.grid);
+  const std::string cam = path_along(Vec3(2.0, 0.0, 1.7), Vec3(1.0, 0.0, 0.0), "at_wall");
+  const auto [flown, no_queries] = walk_to_end(w.path, cam, false);
+  EXPECT_NEAR(flown.x, 2.0 + 0.25 * 59, 1e-9) << "without walk mode the eye follows the path";
+  EXPECT_EQ(no_queries, 0u);
+  const auto [walked, queries] = walk_to_end(w.path, cam, true);
+  EXPECT_GT(queries, 0u);
+  const double h = w.grid->voxel_size();
+  EXPECT_NEAR(walked.x, 8.0 - w.radius, 0.94 * h) << "the eye should stop at its radius from the wall";
+  EXPECT_NEAR(walked.z, 1.7, 1e-3) << "standing on the floor at eye height";
+  EXPECT_GE(w.grid->distance(walked), w.radius - 1e-6);
+}
+
+// The same on the generated building, straight along +x and -x from the walk's first eye:
+// the eye never gets past the first wall a horizontal ray from it meets (it may stop earlier,
+// at furniture too high to step over).
+TEST(ViewCommand, WalkModeNeverPassesTheBuildingsWalls) {
+  const BuildingWalk& b = building_walk();
+  const WalkableStore w = walkable_store(b.model, "building_walkable");
+  ASSERT_TRUE(w.grid);
+  Scene scene;
+  ASSERT_TRUE(load_scene(b.model, scene).is_ok());
+  const Vec3 start = walk_cameras().front().eye;
+  for (const Vec3 dir : {Vec3(1.0, 0.0, 0.0), Vec3(-1.0, 0.0, 0.0), Vec3(0.0, 1.0, 0.0), Vec3(0.0, -1.0, 0.0)}) {
+    SCOPED_TRACE(dir.x + 2 * dir.y);
+    Counters counters;
+    const RayHit wall = brute_force_hit(scene, Ray(start, dir), 0.0, counters);
+    ASSERT_TRUE(wall.hit());
+    const std::string cam = path_along(start, dir, "building_dir");
+    const auto [walked, queries] = walk_to_end(w.path, cam, true);
+    EXPECT_GT(queries, 0u);
+    EXPECT_LE(glm::dot(walked - start, dir), wall.t - w.radius + 0.94 * w.grid->voxel_size())
+        << "the eye passed the wall " << wall.t << " m ahead";
+    EXPECT_GE(w.grid->distance(walked), w.radius - 1e-6);
+  }
 }
 
 // A page with a flipped byte: the walk goes on to the end, the error is counted, and the cell
