@@ -125,7 +125,7 @@ void FrustumCaster::begin(const View& view, SampleBuffer& buffer, CellMarks& mar
   marks.begin_frame();
   samples_done_ = 0;
   ++frame_;
-  if (cell_cache_count_ != tree_.cells().size()) {
+  if (cell_cache_count_ < tree_.cells().size()) {
     cell_cache_count_ = tree_.cells().size();
     cell_cache_ = std::make_unique<CellCache[]>(cell_cache_count_);
   }
@@ -224,14 +224,16 @@ void FrustumCaster::tree_changed() {
   const size_t cells = tree_.cells().size();
   marks_->grow(cells);
   if (cell_cache_count_ < cells) {
-    // Entries of this frame move along; new cells start unstamped.
-    auto bigger = std::make_unique<CellCache[]>(cells);
+    // Entries of this frame move along; new cells start unstamped. Grown geometrically: a
+    // walk grafts a few cells at a time.
+    const size_t capacity = std::max(cells, cell_cache_count_ + cell_cache_count_ / 2);
+    auto bigger = std::make_unique<CellCache[]>(capacity);
     for (size_t c = 0; c < cell_cache_count_; ++c) {
       bigger[c].entries = std::move(cell_cache_[c].entries);
       bigger[c].stamp.store(cell_cache_[c].stamp.load(std::memory_order_relaxed), std::memory_order_relaxed);
     }
     cell_cache_ = std::move(bigger);
-    cell_cache_count_ = cells;
+    cell_cache_count_ = capacity;
   }
 }
 

@@ -28,7 +28,7 @@ size_t SampleBuffer::confirmed_count() const {
 }
 
 void CellMarks::resize(size_t cells) {
-  if (cells == size_ && stamp_) return;
+  if (cells <= size_ && stamp_) return;  // stamps of earlier frames are stale anyway
   size_ = cells;
   stamp_ = std::make_unique<std::atomic<uint32_t>[]>(cells);
   for (size_t i = 0; i < cells; ++i) stamp_[i].store(0, std::memory_order_relaxed);
@@ -37,6 +37,7 @@ void CellMarks::resize(size_t cells) {
 
 void CellMarks::grow(size_t cells) {
   if (cells <= size_ && stamp_) return;
+  cells = std::max(cells, size_ + size_ / 2);  // geometric: a walk grafts a few cells at a time
   auto bigger = std::make_unique<std::atomic<uint32_t>[]>(cells);
   for (size_t i = 0; i < cells; ++i) {
     bigger[i].store(i < size_ ? stamp_[i].load(std::memory_order_relaxed) : 0u, std::memory_order_relaxed);
@@ -68,6 +69,19 @@ struct Interpolation {
     img[i] = buf.confirmed(i) ? buf.color(i) : interpolated;
     known[i] = 1;
   }
+  // The edge midpoints (and the centre) of a rectangle being split, from its corners.
+  void settle_midpoints(int x0, int y0, int x1, int y1, int xm, int ym, bool split_x, bool split_y) {
+    const Rgb c00 = value(x0, y0), c10 = value(x1, y0), c01 = value(x0, y1), c11 = value(x1, y1);
+    if (split_x) {
+      settle(xm, y0, mix(c00, c10));
+      settle(xm, y1, mix(c01, c11));
+    }
+    if (split_y) {
+      settle(x0, ym, mix(c00, c01));
+      settle(x1, ym, mix(c10, c11));
+    }
+    if (split_x && split_y) settle(xm, ym, mix4(c00, c10, c01, c11));
+  }
   // The 1-D recursion fill() runs along a rectangle's edge (the same midpoints and values).
   void fill_edge(int x0, int y0, int x1, int y1) {
     if (y0 == y1) {
@@ -93,17 +107,8 @@ struct Interpolation {
       return;
     }
     const int xm = split_x ? (x0 + x1) / 2 : x0, ym = split_y ? (y0 + y1) / 2 : y0;
-    const Rgb c00 = value(x0, y0), c10 = value(x1, y0), c01 = value(x0, y1), c11 = value(x1, y1);
-    if (split_x) {
-      settle(xm, y0, mix(c00, c10));
-      settle(xm, y1, mix(c01, c11));
-    }
-    if (split_y) {
-      settle(x0, ym, mix(c00, c01));
-      settle(x1, ym, mix(c10, c11));
-    }
+    settle_midpoints(x0, y0, x1, y1, xm, ym, split_x, split_y);
     if (split_x && split_y) {
-      settle(xm, ym, mix4(c00, c10, c01, c11));
       split_until(x0, y0, xm, ym, area, out);
       split_until(xm, y0, x1, ym, area, out);
       split_until(x0, ym, xm, y1, area, out);
@@ -120,17 +125,8 @@ struct Interpolation {
     const bool split_x = x1 - x0 >= 2, split_y = y1 - y0 >= 2;
     if (!split_x && !split_y) return;
     const int xm = split_x ? (x0 + x1) / 2 : x0, ym = split_y ? (y0 + y1) / 2 : y0;
-    const Rgb c00 = value(x0, y0), c10 = value(x1, y0), c01 = value(x0, y1), c11 = value(x1, y1);
-    if (split_x) {
-      settle(xm, y0, mix(c00, c10));
-      settle(xm, y1, mix(c01, c11));
-    }
-    if (split_y) {
-      settle(x0, ym, mix(c00, c01));
-      settle(x1, ym, mix(c10, c11));
-    }
+    settle_midpoints(x0, y0, x1, y1, xm, ym, split_x, split_y);
     if (split_x && split_y) {
-      settle(xm, ym, mix4(c00, c10, c01, c11));
       fill(x0, y0, xm, ym);
       fill(xm, y0, x1, ym);
       fill(x0, ym, xm, y1);

@@ -48,6 +48,7 @@ nlohmann::json FrameReport::to_json() const {
                       {"resident_cells", resident_cells},
                       {"collision_queries", collision_queries},
                       {"decode_ms", decode_ms},
+                      {"reconstruct_ms", reconstruct_ms},
                       {"shading_ops", shading_ops},
                       {"shadow_rays", shadow_rays}};
   if (oracle_cells) j["oracle_cells"] = *oracle_cells;
@@ -139,7 +140,11 @@ FrameReport Walkthrough::frame(const Camera& camera) {
     r.stall_ms += world_->wait_for_pages(wait_for_all ? Clock::time_point::max() : deadline);
   }
   const auto finish_start = Clock::now();
-  reconstruct(buffer_, shader_->background());
+  reconstructed_ = false;
+  if (options_.reconstruct_each_frame) {
+    image();
+    r.reconstruct_ms = ms_since(finish_start);
+  }
 
   const PagingCounters paging = world_->take_counters();
   const store::PageCacheStats cache = world_->cache_stats();
@@ -177,6 +182,14 @@ FrameReport Walkthrough::frame(const Camera& camera) {
     if (!oracle_frame_->cells.empty()) r.oracle_ratio = double(r.cells_touched) / double(oracle_frame_->cells.size());
   }
   return r;
+}
+
+const std::vector<Rgb>& Walkthrough::image() {
+  if (!reconstructed_) {
+    reconstruct(buffer_, shader_->background());
+    reconstructed_ = true;
+  }
+  return buffer_.image();
 }
 
 std::vector<uint32_t> Walkthrough::ids() const {

@@ -47,6 +47,10 @@ struct WalkOptions {
   bool shadows = true;         // deferred shadows when the camera stops (scene must declare lights)
   uint32_t cell_prims = 8;     // how a paged-in store cell is refined
   int leaf_pixels = FrustumCaster::kDefaultLeafPixels;
+  // Reconstruct the displayed image at the end of every frame (inside the frame's time; a
+  // window needs it). Off, image() reconstructs on demand: headless walks pay for it only for
+  // the frames they write.
+  bool reconstruct_each_frame = true;
 };
 
 struct FrameReport {
@@ -80,6 +84,7 @@ struct FrameReport {
   uint64_t resident_cells = 0;
   uint64_t collision_queries = 0;   // filled in by the viewer's walk mode (0 without it)
   double decode_ms = 0.0;
+  double reconstruct_ms = 0.0;      // 0 when the frame did not reconstruct its image
   uint64_t shading_ops = 0;
   uint64_t shadow_rays = 0;
   nlohmann::json to_json() const;
@@ -98,6 +103,8 @@ class Walkthrough {
   const StoreModel& model() const { return *model_; }
   const PagedWorld& world() const { return *world_; }
   const SampleBuffer& buffer() const { return buffer_; }
+  // The displayed image (§5.4 reconstruction of the current samples), row-major, top row first.
+  const std::vector<Rgb>& image();
   const View& view() const { return view_; }
   // Per pixel: the source id of the first hit (kNoPrim: background or not sampled yet).
   std::vector<uint32_t> ids() const;
@@ -124,7 +131,8 @@ class Walkthrough {
   bool image_shadows_ = false;
   uint64_t frames_ = 0;
   uint64_t last_bytes_read_ = 0;
-  double finish_ms_ = 0.0;  // recent time from the end of the job queue to the end of a frame
+  double finish_ms_ = 0.0;
+  bool reconstructed_ = false;  // image() is up to date with the samples  // recent time from the end of the job queue to the end of a frame
 };
 
 }  // namespace frontier

@@ -245,7 +245,7 @@ int walk_headless(const Options& o, Walkthrough& walk, const Camera& start) {
     if (report.is_open()) report << r.to_json().dump() << "\n";
     if (!o.png_dir.empty() && (f % png_every == 0 || f + 1 == frames)) {
       const std::string file = fmt::format("{}/frame_{:05d}.png", o.png_dir, f);
-      if (Status s = write_png(file, walk.view().width, walk.view().height, walk.buffer().image()); !s) return fail(s);
+      if (Status s = write_png(file, walk.view().width, walk.view().height, walk.image()); !s) return fail(s);
     }
   }
   nlohmann::json summary = {{"frames", frames},
@@ -285,7 +285,7 @@ int store_frame(const Options& o, Walkthrough& walk, const Camera& camera) {
   fmt::print(stderr, "{}: {} cells touched, {} paged in ({:.1f} MiB read), {:.1f} ms, {} samples\n", o.scene_path,
              r.cells_touched, r.cells_paged_in, double(r.bytes_read) / 1048576.0, r.frame_ms, r.image_samples);
   if (!o.png_path.empty()) {
-    if (Status s = write_png(o.png_path, walk.view().width, walk.view().height, walk.buffer().image()); !s) {
+    if (Status s = write_png(o.png_path, walk.view().width, walk.view().height, walk.image()); !s) {
       return fail(s);
     }
   }
@@ -312,7 +312,7 @@ int main(int argc, char** argv) {
   app.add_flag("--headless", o.headless, "no window: walk --path, or render one frame");
   app.add_option("--size", o.size_text, "image size WxH (default 640x480 for stores; a model's own resolution or 512x512)");
   app.add_option("--threads", o.threads, "render threads (0 = all cores)")->check(CLI::NonNegativeNumber);
-  auto* peg_time = app.add_option("--frame-ms", o.frame_ms, "peg frame time: stop each frame after MS milliseconds")
+  auto* peg_time = app.add_option("--frame-ms", o.frame_ms, "peg frame time: stop each frame after MS milliseconds (window default: 50)")
                        ->check(CLI::PositiveNumber);
   auto* peg_samples = app.add_option("--samples", o.samples, "peg sample count: stop each frame after N samples")
                           ->check(CLI::PositiveNumber);
@@ -376,6 +376,7 @@ int main(int argc, char** argv) {
   wo.shadows = !o.no_shadows;
   wo.cell_prims = o.cell_prims;
   wo.leaf_pixels = o.leaf_pixels;
+  wo.reconstruct_each_frame = !o.headless;  // headless: only for the frames written as PNG
   auto walk = Walkthrough::open(o.scene_path, wo);
   if (!walk) return fail(walk.status());
   const StoreModelInfo& info = (*walk)->model().info();
@@ -384,6 +385,12 @@ int main(int argc, char** argv) {
   if (o.headless) {
     if (o.path_file.empty() && o.report_path.empty()) return store_frame(o, **walk, start);
     return walk_headless(o, **walk, start);
+  }
+  // An interactive window pegs frame time (50 ms unless told otherwise): frames keep coming
+  // while pages arrive and the image refines.
+  if (wo.budget.ms <= 0.0 && wo.budget.samples == 0) {
+    wo.budget.ms = 50.0;
+    (*walk)->set_budget(wo.budget);
   }
   WindowOptions win;
   win.start = start;

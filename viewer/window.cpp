@@ -19,9 +19,8 @@
 // collision grid there is no floor) is put back where walking started, in fly mode. Scripted
 // and path runs move as if every frame took 1/30 s, so they are reproducible.
 //
-// Pegging: Walkthrough has no budget setter yet. apply_budget() uses
-// `Walkthrough::set_budget(const FrameBudget&)` as soon as it exists; until then P changes only
-// what the HUD says (it marks that "HUD only").
+// Pegging: P and [ ] change the Walkthrough's budget (Walkthrough::set_budget) for the next
+// frames.
 #include "viewer/window.h"
 
 #include "src/image.h"
@@ -56,18 +55,6 @@ constexpr double kSpeedStep = 1.25;
 constexpr size_t kHistory = 120;
 constexpr size_t kMaxMapCells = 20000;      // beyond this the map outlines only the touched cells
 constexpr double kMiB = 1024.0 * 1024.0;
-
-// Once Walkthrough has `void set_budget(const FrameBudget&)`, P and [ ] change the frames;
-// before that this returns false and the HUD says the toggle is not applied.
-template <class W>
-bool apply_budget(W& walk, const FrameBudget& budget) {
-  if constexpr (requires { walk.set_budget(budget); }) {
-    walk.set_budget(budget);
-    return true;
-  } else {
-    return false;
-  }
-}
 
 std::string grouped(uint64_t n) {
   std::string digits = std::to_string(n), out;
@@ -314,7 +301,6 @@ class WindowSession {
   Peg peg_ = Peg::Complete;
   double peg_ms_ = 0.0;
   uint64_t peg_samples_ = 0;
-  bool peg_applied_ = true;  // the Walkthrough renders with the peg the HUD shows
   CellView cell_view_ = CellView::Map;
   bool show_hud_ = true;
   bool quit_ = false;
@@ -369,9 +355,7 @@ void WindowSession::scale_peg(double factor) {
     return;
   }
   budget_ = b;
-  // Back at the budget the Walkthrough was opened with, the HUD is right even without a setter.
-  peg_applied_ = apply_budget(walk_, budget_) ||
-                 (budget_.ms == options_.budget.ms && budget_.samples == options_.budget.samples);
+  walk_.set_budget(budget_);
 }
 
 void WindowSession::handle_key(int key) {
@@ -481,7 +465,7 @@ void WindowSession::show_window_for(int image_w, int image_h) {
 
 void WindowSession::upload_image() {
   const int w = walk_.buffer().width(), h = walk_.buffer().height();
-  const std::vector<Rgb>& image = walk_.buffer().image();
+  const std::vector<Rgb>& image = walk_.image();
   if (w <= 0 || h <= 0 || image.size() != size_t(w) * size_t(h)) return;
   glBindTexture(GL_TEXTURE_2D, texture_);
   glPixelStorei(GL_UNPACK_ALIGNMENT, 4);  // rows of 12-byte pixels
@@ -554,7 +538,6 @@ void WindowSession::draw_text_panel(float scale) {
     case Peg::Samples: peg = fmt::format("peg samples {}", grouped(budget_.samples)); break;
     case Peg::Complete: peg = "no peg: complete images"; break;
   }
-  if (!peg_applied_) peg += " (HUD only)";
   std::string mode = walking_ ? "WALK" : "FLY";
   if (walking_) mode += walker_->on_floor() ? " (on floor)" : " (falling)";
   lines.emplace_back(fmt::format("{}  {:.2g} m/s  {}", mode, speed_, peg), walking_ ? kGreen : kYellow);
