@@ -66,6 +66,8 @@ Result<std::unique_ptr<Walkthrough>> Walkthrough::open(const std::string& store_
   PagedWorldOptions po;
   po.budget_bytes = options.cache_bytes;
   po.cell_build.max_cell_prims = options.cell_prims;
+  po.cell_build.traversal_cost = options.cell_traversal_cost;
+  po.cell_build.forced_split_max_share = options.cell_split_share;
   w->world_ = std::make_unique<PagedWorld>(*w->model_, po);
   w->shader_ = std::make_unique<Shader>(w->world_->scene(), w->world_->tree());
   w->caster_ = std::make_unique<FrustumCaster>(w->world_->scene(), w->world_->tree(), *w->shader_, options.threads);

@@ -178,7 +178,7 @@ TEST(Walkthrough, SmallCacheStaysWithinBudgetAndExactAlongTheBuildingWalk) {
   for (const StoreCell& c : (*model)->cells()) {
     if (c.page != StoreCell::kNoPage) page_bytes += (*model)->reader().page_handle(c.page).size;
   }
-  WalkOptions o = sync_options(96, 16u << 20);
+  WalkOptions o = sync_options(96, 8u << 20);
   o.oracle = true;
   auto walk = Walkthrough::open(b.store, o);
   ASSERT_TRUE(walk.is_ok());

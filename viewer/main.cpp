@@ -341,7 +341,7 @@ int main(int argc, char** argv) {
   app.add_option("--stats", o.stats_path, "one frame: write counters as JSON");
   app.add_option("--method", o.method_text, "model file: visibility method: brute | raywalk | frustum")
       ->check(CLI::IsMember({"brute", "raywalk", "frustum"}));
-  app.add_option("--cell-prims", o.cell_prims, "largest k-d cell kept when it could split (stores: inside a page)")
+  app.add_option("--cell-prims", o.cell_prims, "largest k-d cell kept when it could split (default 8; stores, inside a page: 16)")
       ->check(CLI::Range(1u, 1000000u));
   app.add_option("--min-cell-prims", o.min_cell_prims, "model file: cells at or below this size never split")
       ->check(CLI::Range(0u, 1000000u));
@@ -374,7 +374,7 @@ int main(int argc, char** argv) {
   wo.sync_paging = o.sync_paging;
   wo.oracle = o.oracle;
   wo.shadows = !o.no_shadows;
-  wo.cell_prims = o.cell_prims;
+  if (app.count("--cell-prims") > 0) wo.cell_prims = o.cell_prims;
   wo.leaf_pixels = o.leaf_pixels;
   wo.reconstruct_each_frame = !o.headless;  // headless: only for the frames written as PNG
   auto walk = Walkthrough::open(o.scene_path, wo);
