@@ -111,10 +111,19 @@ FrameReport Walkthrough::frame(const Camera& camera) {
   }
   last_camera_ = camera;
 
+  // Paging in (decode + subtree build) is frame time too: with a pegged frame time it gets at
+  // most a quarter of the frame while other work is queued; the rest waits for the next frame
+  // (its work stays parked), so a burst of new cells costs samples over a few frames instead of
+  // most of one.
+  const auto page_in_deadline =
+      budget.ms > 0.0 ? std::min(deadline, start + std::chrono::duration_cast<Clock::duration>(
+                                                       std::chrono::duration<double, std::milli>(0.25 * budget.ms)))
+                      : deadline;
   Counters counters;
   int restarts = 0;
   while (true) {
-    if (world_->sync(deadline)) {
+    // With nothing else to do, paging in may use the rest of the frame.
+    if (world_->sync(caster_->runnable() ? page_in_deadline : deadline)) {
       caster_->tree_changed();
       caster_->resume_parked();
     }
