@@ -84,20 +84,22 @@ PagedWorld::PagedWorld(const StoreModel& model, const PagedWorldOptions& options
   wanted_flag_ = std::make_unique<std::atomic<uint8_t>[]>(top_cells_);
   for (size_t c = 0; c < top_cells_; ++c) wanted_flag_[c].store(0, std::memory_order_relaxed);
 
-  // The world's arrays never hold more than the decoded share: reserve that much address space
-  // once (untouched pages cost no memory) so that growing never copies them.
-  auto reserve = [&](auto& v) {
-    using T = typename std::decay_t<decltype(v)>::value_type;
-    v.reserve(v.size() + decoded_budget_ / sizeof(T) + 1);
+  // The world's arrays never hold more than the decoded share: reserve what each could reach
+  // within it once (address space only: untouched pages cost no memory), so that growing never
+  // copies them. Capped, so that a huge --cache does not ask for absurd address space.
+  const uint64_t share = std::min<uint64_t>(decoded_budget_, uint64_t{16} << 30);
+  auto reserve = [&](auto& v, uint64_t bytes_per_item) {
+    v.reserve(v.size() + static_cast<size_t>(share / bytes_per_item) + 1);
   };
-  reserve(scene_.prims);
-  reserve(scene_.triangles);
-  reserve(tree_.nodes_);
-  reserve(tree_.cells_);
-  reserve(tree_.refs_);
-  reserve(tree_.ref_bounds_);
-  reserve(missing_);
-  reserve(owner_);
+  const uint64_t per_cell = sizeof(KdTree::Cell) + kPerCellOverhead;
+  reserve(tree_.cells_, per_cell);
+  reserve(missing_, per_cell);
+  reserve(owner_, per_cell);
+  reserve(tree_.nodes_, per_cell / 2);  // a subtree has fewer than two nodes per cell
+  reserve(tree_.refs_, sizeof(uint32_t) + sizeof(Aabb));
+  reserve(tree_.ref_bounds_, sizeof(uint32_t) + sizeof(Aabb));
+  reserve(scene_.prims, sizeof(PrimRef) + sizeof(Sphere));  // the smallest primitive
+  reserve(scene_.triangles, sizeof(PrimRef) + sizeof(Triangle));
 }
 
 PagedWorld::~PagedWorld() = default;

@@ -102,6 +102,11 @@ class PagedWorld final : public CellGate {
   // The store cell a world cell belongs to.
   uint32_t store_cell(int32_t world_cell) const { return owner_[size_t(world_cell)]; }
   bool resident(uint32_t store_cell) const { return slot_[store_cell] >= 0; }
+  // Asked for (by want()) and not grafted, failed or dropped since.
+  bool wanted(uint32_t store_cell) const {
+    return wanted_flag_[store_cell].load(std::memory_order_acquire) != 0 && slot_[store_cell] < 0 &&
+           failed_[store_cell] == 0;
+  }
 
   PagingCounters take_counters();
   uint64_t budget_bytes() const { return budget_; }

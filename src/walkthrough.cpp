@@ -13,6 +13,9 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+// How many frames ahead the eye's path is prefetched.
+constexpr int kPrefetchFrames = 4;
+
 bool same_camera(const Camera& a, const Camera& b) {
   return a.eye == b.eye && a.look_at == b.look_at && a.up == b.up && a.vfov_deg == b.vfov_deg;
 }
@@ -150,6 +153,17 @@ FrameReport Walkthrough::frame(const Camera& camera) {
     }
     r.stall_ms += world_->wait_for_pages(wait_for_all ? Clock::time_point::max() : deadline);
   }
+  // Prefetch: the cells the eye will be in over the next frames if it keeps moving as it did.
+  // A frame whose eye cell is missing can do nothing until that page is in; asking early
+  // keeps walks from stalling there. Prefetched cells are paged in, not touched.
+  if (last_eye_) {
+    const Vec3 step = camera.eye - *last_eye_;
+    for (int ahead = 1; ahead <= kPrefetchFrames && glm::length(step) > 0.0; ++ahead) {
+      const int32_t c = world_->tree().locate(camera.eye + double(ahead) * step, step);
+      if (c != KdTree::kNone && world_->missing(c)) world_->want(c);
+    }
+  }
+  last_eye_ = camera.eye;
   const auto finish_start = Clock::now();
   reconstructed_ = false;
   if (options_.reconstruct_each_frame) {

@@ -9,6 +9,9 @@
 // parked work is left and time remains it waits (that time is stall_ms). With sync paging it
 // waits until the image is complete, so its ids equal an in-memory render of the same store.
 //
+// The cells the eye will enter if it keeps moving as it did are requested ahead (prefetch: a
+// frame whose own eye cell is missing can do nothing until it arrives).
+//
 // Progressive (§5.3): a frame whose camera equals the previous one continues the same image
 // (more samples) instead of starting a new one; the first complete image of a still camera
 // is followed by one with the deferred effects (shadows) if the scene declares lights. While
@@ -134,6 +137,7 @@ class Walkthrough {
   CellMarks marks_;
   View view_;
   std::optional<Camera> last_camera_;
+  std::optional<Vec3> last_eye_;
   bool image_shadows_ = false;
   uint64_t frames_ = 0;
   uint64_t last_bytes_read_ = 0;

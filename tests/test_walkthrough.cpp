@@ -136,6 +136,32 @@ TEST(Walkthrough, PagesInOnlyWhatTheFrameTouches) {
   EXPECT_GT(r.bytes_read, 0u);
 }
 
+// Prefetch: after two frames moving along a straight line, the store cells the eye will be in
+// over the next frames (if it keeps going) are resident or already asked for.
+TEST(Walkthrough, CellsAheadOfAMovingEyeAreRequested) {
+  const BuildingWalk& b = building_walk();
+  auto walk = Walkthrough::open(b.store, sync_options(32, 64u << 20));
+  ASSERT_TRUE(walk.is_ok());
+  const StoreModel& model = (*walk)->model();
+  const KdTree top = KdTree::top_only(model.nodes(), model.info().bounds);
+  Camera cam = walk_cameras().front();
+  const Vec3 step(1.5, 0.0, 0.0);
+  cam.look_at = cam.eye + Vec3(0.0, 1.0, 0.0);  // looking sideways: the cells ahead are not in view
+  (*walk)->frame(cam);
+  cam.eye += step;
+  cam.look_at += step;
+  (*walk)->frame(cam);
+  int checked = 0;
+  for (int ahead = 1; ahead <= 4; ++ahead) {
+    const int32_t c = top.locate(cam.eye + double(ahead) * step, step);
+    if (c == KdTree::kNone || model.cells()[size_t(c)].page == StoreCell::kNoPage) continue;
+    ++checked;
+    EXPECT_TRUE((*walk)->world().resident(uint32_t(c)) || (*walk)->world().wanted(uint32_t(c)))
+        << "cell " << c << " " << ahead << " steps ahead was not requested";
+  }
+  EXPECT_GT(checked, 0);
+}
+
 // A time budget far below what the first frame needs: frames end with parked work instead of
 // waiting; the same camera again continues the image, and it converges to the exact image.
 TEST(Walkthrough, ParkedWorkResumesAndConverges) {
