@@ -79,7 +79,7 @@ struct FrustumCaster::Worker {
   std::array<std::vector<Job>, 4> children;  // next level, by quadrant
   std::vector<Incidence> arena_out;          // incidence lists of those children
   std::vector<Job> remaining;                // jobs skipped because the budget ran out
-  mutable std::vector<Job> parked;           // jobs that reached a missing cell (paging)
+  std::vector<Job> parked;                   // jobs that reached a missing cell (paging)
   std::vector<Incidence> scratch;            // a freshly collected list
   std::vector<double> fill_t;                // per-pixel hits of the fill element
   std::vector<uint32_t> occluders;

@@ -12,8 +12,8 @@ namespace frontier {
 namespace {
 
 constexpr uint64_t kMinCompressedShare = 1ull << 20;
-// Per world cell: owner_ and missing_ here, the caster's marks and per-cell incidence cache.
-constexpr uint64_t kPerCellOverhead = sizeof(uint32_t) + 1 + sizeof(uint32_t) + 48;
+// Per world cell: owner_ here, the caster's marks and per-cell incidence cache.
+constexpr uint64_t kPerCellOverhead = sizeof(uint32_t) + sizeof(uint32_t) + 48;
 
 // Bytes of the world's arrays that a cell's scene and subtree occupy once grafted.
 uint64_t charge_of(const Scene& s, const KdTree& t) {
@@ -93,7 +93,6 @@ PagedWorld::PagedWorld(const StoreModel& model, const PagedWorldOptions& options
   };
   const uint64_t per_cell = sizeof(KdTree::Cell) + kPerCellOverhead;
   reserve(tree_.cells_, per_cell);
-  reserve(missing_, per_cell);
   reserve(owner_, per_cell);
   reserve(tree_.nodes_, per_cell / 2);  // a subtree has fewer than two nodes per cell
   reserve(tree_.refs_, sizeof(uint32_t) + sizeof(Aabb));
@@ -248,7 +247,6 @@ void PagedWorld::graft(Decoded& d) {
       c.rope[f] = c.rope[f] == KdTree::kNone ? placeholder.rope[f] : c.rope[f] + static_cast<int32_t>(g.node0);
     }
     tree_.cells_.push_back(c);
-    missing_.push_back(0);
     owner_.push_back(d.cell);
   }
   for (uint32_t r : sub.refs_) tree_.refs_.push_back(r + g.prim0);
@@ -385,7 +383,6 @@ void PagedWorld::compact() {
     }
     slide(tree_.cells_, g.cell0, cell_at, g.cells);
     slide(owner_, g.cell0, cell_at, g.cells);
-    slide(missing_, g.cell0, cell_at, g.cells);
     for (uint32_t c = cell_at; c < cell_at + g.cells; ++c) {
       KdTree::Cell& cell = tree_.cells_[c];
       cell.first = static_cast<uint32_t>(int64_t(cell.first) + ref_delta);
@@ -427,7 +424,6 @@ void PagedWorld::compact() {
   tree_.nodes_.resize(node_at);
   tree_.cells_.resize(cell_at);
   owner_.resize(cell_at);
-  missing_.resize(cell_at);
   tree_.refs_.resize(ref_at);
   tree_.ref_bounds_.resize(ref_at);
   scene_.prims.resize(prim_at);

@@ -73,6 +73,7 @@ class PagedWorld final : public CellGate {
   const StoreModel& model() const { return model_; }
 
   // CellGate (render workers).
+  // Only top cells can be missing; grafted cells are numbered after them.
   bool missing(int32_t cell) const override { return size_t(cell) < missing_.size() && missing_[size_t(cell)] != 0; }
   void want(int32_t cell) override;
 
@@ -149,7 +150,7 @@ class PagedWorld final : public CellGate {
   size_t top_nodes_ = 0;
   size_t top_cells_ = 0;
   std::vector<uint32_t> leaf_node_;      // store cell -> its top leaf node
-  std::vector<uint8_t> missing_;         // per world cell (only top cells can be missing)
+  std::vector<uint8_t> missing_;         // per top cell
   std::vector<uint32_t> owner_;          // world cell -> store cell
   std::vector<int32_t> slot_;            // store cell -> index in live_, or -1
   std::vector<Graft> live_;

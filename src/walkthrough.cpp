@@ -86,6 +86,7 @@ void Walkthrough::start_image(bool shadows) {
   world_->begin_frame(marks_);
   image_shadows_ = shadows;
   caster_->begin(view_, buffer_, marks_, true, shadows);
+  image_samples_ = 0;
 }
 
 FrameReport Walkthrough::frame(const Camera& camera) {
@@ -102,7 +103,8 @@ FrameReport Walkthrough::frame(const Camera& camera) {
   FrameReport r;
   r.frame = frames_++;
   r.eye = camera.eye;
-  const bool still = last_camera_ && same_camera(*last_camera_, camera);
+  const std::optional<Camera> previous = last_camera_;
+  const bool still = previous && same_camera(*previous, camera);
   const bool lights = shader_->effects().shadows && options_.shadows;
   if (!still) {
     view_ = View(camera, options_.width, options_.height);
@@ -137,7 +139,9 @@ FrameReport Walkthrough::frame(const Camera& camera) {
       FrameBudget slice;
       if (budget.ms > 0.0) slice.ms = std::max(0.01, std::chrono::duration<double, std::milli>(deadline - Clock::now()).count());
       if (budget.samples > 0) slice.samples = budget.samples - counters.samples;
+      const uint64_t before = counters.samples;
       caster_->run(slice, counters);
+      image_samples_ += counters.samples - before;
       continue;
     }
     // Only parked work is left.
@@ -147,6 +151,7 @@ FrameReport Walkthrough::frame(const Camera& camera) {
       // the budget, the frame degrades: the missing cells' pixels stay reconstructed.
       if (restarts++ < 1 && world_->reclaim_untouched(marks_)) {
         caster_->begin(view_, buffer_, marks_, true, image_shadows_);
+        image_samples_ = 0;
         continue;
       }
       break;
@@ -156,14 +161,13 @@ FrameReport Walkthrough::frame(const Camera& camera) {
   // Prefetch: the cells the eye will be in over the next frames if it keeps moving as it did.
   // A frame whose eye cell is missing can do nothing until that page is in; asking early
   // keeps walks from stalling there. Prefetched cells are paged in, not touched.
-  if (last_eye_) {
-    const Vec3 step = camera.eye - *last_eye_;
+  if (previous) {
+    const Vec3 step = camera.eye - previous->eye;
     for (int ahead = 1; ahead <= kPrefetchFrames && glm::length(step) > 0.0; ++ahead) {
       const int32_t c = world_->tree().locate(camera.eye + double(ahead) * step, step);
       if (c != KdTree::kNone && world_->missing(c)) world_->want(c);
     }
   }
-  last_eye_ = camera.eye;
   const auto finish_start = Clock::now();
   reconstructed_ = false;
   if (options_.reconstruct_each_frame) {
@@ -187,7 +191,7 @@ FrameReport Walkthrough::frame(const Camera& camera) {
   r.shading_ops = counters.shading_ops;
   r.shadow_rays = counters.shadow_rays;
   r.pixels = view_.pixels();
-  for (size_t i = 0; i < r.pixels; ++i) r.image_samples += buffer_.confirmed(i) ? 1 : 0;
+  r.image_samples = image_samples_;
   r.complete = caster_->complete();
   r.shadows = image_shadows_;
   r.parked = caster_->parked();

@@ -137,12 +137,12 @@ class Walkthrough {
   CellMarks marks_;
   View view_;
   std::optional<Camera> last_camera_;
-  std::optional<Vec3> last_eye_;
   bool image_shadows_ = false;
   uint64_t frames_ = 0;
   uint64_t last_bytes_read_ = 0;
-  double finish_ms_ = 0.0;
-  bool reconstructed_ = false;  // image() is up to date with the samples  // recent time from the end of the job queue to the end of a frame
+  double finish_ms_ = 0.0;        // recent time from the end of the job queue to the end of a frame
+  bool reconstructed_ = false;    // image() is up to date with the samples
+  uint64_t image_samples_ = 0;    // pixels confirmed in the current image (each confirm counts one)
 };
 
 }  // namespace frontier

@@ -97,7 +97,7 @@ struct Options {
 };
 
 // A model file, or a store decoded whole, rendered in memory: one frame.
-int render_in_memory(const Options& o) {
+int render_in_memory(const Options& o, bool store) {
   Method method;
   parse_method(o.method_text, method);
   Scene scene;
@@ -106,7 +106,7 @@ int render_in_memory(const Options& o) {
   build.max_cell_prims = o.cell_prims;
   build.min_cell_prims = o.min_cell_prims;
   const auto t0 = std::chrono::steady_clock::now();
-  if (is_store(o.scene_path)) {
+  if (store) {
     auto model = StoreModel::open(o.scene_path);
     Status s = model ? (*model)->load_all(scene, tree, build) : model.status();
     if (!s) return fail(s);
@@ -114,7 +114,7 @@ int render_in_memory(const Options& o) {
     if (Status s = load_scene(o.scene_path, scene); !s) return fail(s);
   }
   const auto t1 = std::chrono::steady_clock::now();
-  if (!is_store(o.scene_path)) tree = KdTree::build(scene, build);
+  if (!store) tree = KdTree::build(scene, build);
   const auto t2 = std::chrono::steady_clock::now();
   Camera camera = scene.camera ? *scene.camera : automatic_camera(scene.bounds());
   int width = camera.width > 0 ? camera.width : 512, height = camera.height > 0 ? camera.height : 512;
@@ -183,6 +183,22 @@ WalkParams walk_params(const Options& o, const StoreModel& model) {
   return p;
 }
 
+// Walk mode's grid and walker. Returns 0 when ready; else prints why and returns 1 (the store
+// has no usable grid) or 2 (the walk options do not fit the grid).
+struct WalkMode {
+  std::unique_ptr<CollisionGrid> grid;
+  std::unique_ptr<Walker> walker;
+};
+int open_walk_mode(const Options& o, const StoreModel& model, WalkMode& mode) {
+  auto grid = load_grid(model);
+  if (!grid) return fail(grid.status());
+  mode.grid = std::move(*grid);
+  const WalkParams params = walk_params(o, model);
+  if (Status s = Walker::check(*mode.grid, params); !s) return bad_option("walk mode: " + s.message());
+  mode.walker = std::make_unique<Walker>(*mode.grid, params);
+  return 0;
+}
+
 // The walk along a camera path without a window: frames.jsonl, PNGs, summary.
 int walk_headless(const Options& o, Walkthrough& walk, const Camera& start) {
   std::vector<Camera> path;
@@ -195,16 +211,11 @@ int walk_headless(const Options& o, Walkthrough& walk, const Camera& start) {
     path.push_back(start);
   }
   const size_t frames = o.frames > 0 ? static_cast<size_t>(o.frames) : path.size();
-  std::unique_ptr<CollisionGrid> grid;
-  std::unique_ptr<Walker> walker;
+  WalkMode mode;
   if (o.walk) {
-    auto g = load_grid(walk.model());
-    if (!g) return fail(g.status());
-    grid = std::move(*g);
-    const WalkParams params = walk_params(o, walk.model());
-    if (Status s = Walker::check(*grid, params); !s) return bad_option("walk mode: " + s.message());
-    walker = std::make_unique<Walker>(*grid, params);
+    if (const int code = open_walk_mode(o, walk.model(), mode); code != 0) return code;
   }
+  Walker* const walker = mode.walker.get();
   std::ofstream report;
   if (!o.report_path.empty()) {
     report.open(o.report_path);
@@ -230,7 +241,7 @@ int walk_headless(const Options& o, Walkthrough& walk, const Camera& start) {
       cam.look_at = eye + look;
     }
     FrameReport r = walk.frame(cam);
-    if (grid) r.collision_queries = walker->queries();
+    if (walker) r.collision_queries = walker->queries();
     frame_ms.push_back(r.frame_ms);
     samples += double(r.samples);
     bytes_read += r.bytes_read;
@@ -359,7 +370,7 @@ int main(int argc, char** argv) {
       return bad_option("--path, --report, --walk and --oracle need a store (frontier-build) and no --in-memory");
     }
     if (!o.headless) return bad_option("a model file is rendered headless: add --headless (or build a store)");
-    return render_in_memory(o);
+    return render_in_memory(o, store);
   }
   const auto cache = parse_byte_size(o.cache_text);
   if (!cache || *cache < (1u << 20)) return bad_option("--cache " + o.cache_text + ": expected a size of at least 1M, e.g. 512M");
@@ -404,20 +415,12 @@ int main(int argc, char** argv) {
   win.screenshot = o.png_path;
   win.budget = wo.budget;
   win.start_walking = o.walk;
-  std::unique_ptr<CollisionGrid> grid;
-  std::unique_ptr<Walker> walker;
+  WalkMode mode;
   if (info.walkable) {
-    auto g = load_grid((*walk)->model());
-    if (!g) return fail(g.status());
-    grid = std::move(*g);
-    const WalkParams params = walk_params(o, (*walk)->model());
-    if (Status s = Walker::check(*grid, params); s) {
-      walker = std::make_unique<Walker>(*grid, params);
-    } else {
-      std::fprintf(stderr, "frontier-view: walk mode off: %s\n", s.message().c_str());
-      if (o.walk) return 2;
-    }
-    win.walk_available = walker != nullptr;
+    // Options that do not fit the grid only matter when walking was asked for.
+    const int code = open_walk_mode(o, (*walk)->model(), mode);
+    if (code == 1 || (code == 2 && o.walk)) return code;
+    win.walk_available = mode.walker != nullptr;
   }
-  return run_window(**walk, win, walker.get());
+  return run_window(**walk, win, mode.walker.get());
 }

@@ -161,6 +161,16 @@ class Rig {
   // Ground-plane coordinates of a point (the map's axes).
   double ground_x(const Vec3& p) const { return glm::dot(p, e1_); }
   double ground_y(const Vec3& p) const { return glm::dot(p, e2_); }
+  // The ground-plane rectangle a box projects to (grown into lo/hi).
+  void ground_extent(const Aabb& box, double& lo_x, double& hi_x, double& lo_y, double& hi_y) const {
+    for (int k = 0; k < 8; ++k) {
+      const Vec3 p(k & 1 ? box.hi.x : box.lo.x, k & 2 ? box.hi.y : box.lo.y, k & 4 ? box.hi.z : box.lo.z);
+      lo_x = std::min(lo_x, ground_x(p));
+      hi_x = std::max(hi_x, ground_x(p));
+      lo_y = std::min(lo_y, ground_y(p));
+      hi_y = std::max(hi_y, ground_y(p));
+    }
+  }
 
   Camera camera() const {
     Camera c = base_;
@@ -251,15 +261,7 @@ class WindowSession {
   int run();
 
  private:
-  void extend_map(const Aabb& box) {
-    for (int k = 0; k < 8; ++k) {
-      const Vec3 p(k & 1 ? box.hi.x : box.lo.x, k & 2 ? box.hi.y : box.lo.y, k & 4 ? box.hi.z : box.lo.z);
-      map_lo_x_ = std::min(map_lo_x_, rig_.ground_x(p));
-      map_hi_x_ = std::max(map_hi_x_, rig_.ground_x(p));
-      map_lo_y_ = std::min(map_lo_y_, rig_.ground_y(p));
-      map_hi_y_ = std::max(map_hi_y_, rig_.ground_y(p));
-    }
-  }
+  void extend_map(const Aabb& box) { rig_.ground_extent(box, map_lo_x_, map_hi_x_, map_lo_y_, map_hi_y_); }
 
   bool frames_done(int shown) const {
     if (options_.frames > 0) return shown >= options_.frames;
@@ -646,13 +648,7 @@ void WindowSession::draw_map(const Rect& area, float scale) {
   const auto py = [&](double gy) { return float(double(plot.y) + 0.5 * plot.h - (gy - cy) * k); };
   const auto footprint = [&](const Aabb& box, float& x0, float& y0, float& x1, float& y1) {
     double lx = kInfinity, hx = -kInfinity, ly = kInfinity, hy = -kInfinity;
-    for (int c = 0; c < 8; ++c) {
-      const Vec3 p(c & 1 ? box.hi.x : box.lo.x, c & 2 ? box.hi.y : box.lo.y, c & 4 ? box.hi.z : box.lo.z);
-      lx = std::min(lx, rig_.ground_x(p));
-      hx = std::max(hx, rig_.ground_x(p));
-      ly = std::min(ly, rig_.ground_y(p));
-      hy = std::max(hy, rig_.ground_y(p));
-    }
+    rig_.ground_extent(box, lx, hx, ly, hy);
     x0 = px(lx);
     x1 = px(hx);
     y0 = py(hy);
