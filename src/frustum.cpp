@@ -528,21 +528,25 @@ void FrustumCaster::process(Job job, Worker& w) {
 
     // Nothing left to find in this cell for the unresolved pixels: advance if all corner rays
     // leave through one face into one cell (every interior ray then does the same).
+    // The arrival cell is looked up only when the faces agree, and only for the first corner:
+    // the others are checked against it with a box test (a corner on an edge of that cell's
+    // face counts as disagreeing, which only costs a split).
     std::array<KdTree::Exit, 4> exits;
-    std::array<int32_t, 4> next;
-    for (size_t k = 0; k < 4; ++k) {
-      exits[k] = tree_.exit(job.cell, rays[k]);
-      next[k] = tree_.arrival(job.cell, rays[k], exits[k]);
-    }
+    for (size_t k = 0; k < 4; ++k) exits[k] = tree_.exit(job.cell, rays[k]);
     const std::array<int, 4> faces = {exits[0].face, exits[1].face, exits[2].face, exits[3].face};
-    if (faces[0] >= 0 && all_same(faces) && all_same(next)) {
-      if (next[0] == KdTree::kNone) {
-        fill_background(job, w);
+    if (faces[0] >= 0 && all_same(faces)) {
+      const int32_t next = tree_.arrival(job.cell, rays[0], exits[0]);
+      if (next == KdTree::kNone && tree_.cell(job.cell).rope[faces[0]] == KdTree::kNone) {
+        fill_background(job, w);  // every corner leaves the root through this face
         return;
       }
-      job.cell = next[0];
-      job.state = kFresh;
-      continue;
+      bool same = next != KdTree::kNone;
+      for (size_t k = 1; k < 4 && same; ++k) same = tree_.arrives_in(job.cell, rays[k], exits[k], next);
+      if (same) {
+        job.cell = next;
+        job.state = kFresh;
+        continue;
+      }
     }
     if (job.small(leaf_)) {
       resolve_by_walking(job, w, true);

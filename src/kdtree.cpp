@@ -450,6 +450,17 @@ int32_t KdTree::arrival(int32_t c, const Ray& ray, const Exit& e) const {
   return descend(rope, p, ray.dir);
 }
 
+bool KdTree::arrives_in(int32_t c, const Ray& ray, const Exit& e, int32_t n) const {
+  if (e.face < 0 || n == kNone) return false;
+  const Cell& cell = cells_[static_cast<size_t>(c)];
+  const Aabb& to = cells_[static_cast<size_t>(n)].bounds;
+  const int a = e.face / 2, b = (a + 1) % 3, d = (a + 2) % 3;
+  const double plane = (e.face & 1) ? cell.bounds.hi[a] : cell.bounds.lo[a];
+  if (plane != ((e.face & 1) ? to.lo[a] : to.hi[a])) return false;
+  const Vec3 p = ray.at(e.t);
+  return to.lo[b] < p[b] && p[b] < to.hi[b] && to.lo[d] < p[d] && p[d] < to.hi[d];
+}
+
 int32_t KdTree::enter_root(const Ray& ray, double tmin, double& t_enter, int& face) const {
   double t0, t1;
   if (!ray_box_interval(ray, bounds_, t0, t1) || t1 < tmin) return kNone;

@@ -98,6 +98,10 @@ class KdTree {
   Exit exit(int32_t c, const Ray& ray) const;
   // The cell a ray enters after leaving c through `e`; kNone when it leaves the root.
   int32_t arrival(int32_t c, const Ray& ray, const Exit& e) const;
+  // Whether a ray leaving c through `e` surely arrives in cell n: its exit point lies inside
+  // n's entry face, strictly in the two other axes (on an edge of that face it answers false,
+  // where arrival() would break the tie by direction). A box test instead of a rope descent.
+  bool arrives_in(int32_t c, const Ray& ray, const Exit& e, int32_t n) const;
   // Where a ray from outside enters the root: the cell and the entry parameter. kNone if it
   // misses the root.
   int32_t enter_root(const Ray& ray, double tmin, double& t_enter, int& face) const;
