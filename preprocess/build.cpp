@@ -451,6 +451,7 @@ class StoreBuilder {
     KdBuildOptions kd;
     kd.max_cell_prims = options_.cell_prims;
     kd.min_cell_prims = options_.cell_prims;
+    kd.forced_split_max_share = 1.0;  // pages hold at most --cell-prims wherever a plane separates
     kd.root = part.region;
     const KdTree tree = KdTree::build(scene, kd);
     report_.build_seconds += seconds_since(t);

@@ -205,7 +205,8 @@ class KdBuilder {
     bool do_split = split.axis >= 0 && split.cost < leaf_cost;
     const double share_cap = std::min(1.0, options_.forced_split_max_share) * static_cast<double>(items.size());
     if (!do_split && split.axis >= 0 && items.size() > options_.max_cell_prims && split.left < items.size() &&
-        split.right < items.size() && static_cast<double>(std::max(split.left, split.right)) <= share_cap) {
+        split.right < items.size() && static_cast<double>(std::max(split.left, split.right)) <= share_cap &&
+        split.left + split.right <= items.size() + items.size() / 2) {
       do_split = true;  // the cell-size cap overrides SAH while splitting still separates
     }
     if (!do_split) {

@@ -24,11 +24,14 @@ struct KdBuildOptions {
   uint32_t max_cell_prims = 8;   // cells above this size split even if SAH prefers a leaf
   uint32_t min_cell_prims = 0;   // cells at or below this size never split (coarse cells)
   // A cell above max_cell_prims that SAH would keep is split anyway only if the larger side
-  // keeps at most this share of its items. 1: any split that separates one item (a hard cap:
-  // the store's pages). Below 1 the cap is soft: cells full of large straddling primitives
+  // keeps at most this share of its items (1: any split that separates one item, the store
+  // builder's hard cap for its pages), and never by a split that copies more than half of the
+  // items into both sides. Below 1 the cap is soft: cells full of large straddling primitives
   // (walls and floors crossing a store cell) stay leaves instead of being cut until max_depth,
-  // which copied each primitive into ~8 cells of a paged-in building cell.
-  double forced_split_max_share = 1.0;
+  // which copied each primitive into ~8 cells of a paged-in building cell; and clusters no
+  // plane separates (fans around a vertex, stacks of overlapping spheres) stay one cell instead
+  // of doubling at every level (tessellated shells.nff took 22 GB with the hard cap).
+  double forced_split_max_share = 0.75;
   uint32_t max_depth = 0;        // 0: 8 + 1.3 log2(n)
   double traversal_cost = 2.0;  // relative to one ray–primitive test; measured on SPD + building models
   double intersection_cost = 1.0;
