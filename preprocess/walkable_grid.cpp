@@ -7,6 +7,7 @@
 #include "preprocess/walkable_grid.h"
 
 #include "src/collision_grid.h"
+#include "src/tessellate.h"
 
 #include <openvdb/openvdb.h>
 #include <openvdb/io/Stream.h>
@@ -17,7 +18,6 @@
 #include <cassert>
 #include <cmath>
 #include <exception>
-#include <numbers>
 #include <mutex>
 #include <sstream>
 #include <string>
@@ -28,24 +28,6 @@ namespace frontier {
 namespace {
 
 constexpr double kMaxIndex = double(1 << 30);  // voxels from the origin: Coord is int32
-constexpr int kMinSegments = 6;
-constexpr int kMaxSegments = 256;
-
-// Segments around a circle of radius r so that the sagitta r (1 - cos(pi / n)) <= max_error.
-int segments_for(double r, double max_error) {
-  if (!(r > max_error)) return kMinSegments;
-  const double n = std::numbers::pi / std::acos(1.0 - max_error / r);
-  if (!(n < kMaxSegments)) return kMaxSegments;
-  return std::max(kMinSegments, int(std::ceil(n)));
-}
-
-// Two unit vectors perpendicular to unit `axis` and to each other.
-void basis_for(const Vec3& axis, Vec3& u, Vec3& v) {
-  const Vec3 helper = std::abs(axis.x) < 0.9 ? Vec3(1, 0, 0) : Vec3(0, 1, 0);
-  u = glm::normalize(glm::cross(axis, helper));
-  v = glm::cross(axis, u);
-}
-
 double segment_distance(const Vec3& p, const Vec3& a, const Vec3& b) {
   const Vec3 ab = b - a;
   const double len2 = glm::dot(ab, ab);
@@ -246,78 +228,19 @@ struct WalkableGridBuilder::Impl {
     });
   }
 
-  void add_box_surface(const Aabb& b) {
-    Vec3 c[8];
-    for (int i = 0; i < 8; ++i) {
-      c[i] = Vec3(i & 1 ? b.hi.x : b.lo.x, i & 2 ? b.hi.y : b.lo.y, i & 4 ? b.hi.z : b.lo.z);
-    }
-    static constexpr int kFaces[6][4] = {{0, 2, 6, 4}, {1, 5, 7, 3}, {0, 4, 5, 1},
-                                         {2, 3, 7, 6}, {0, 1, 3, 2}, {4, 6, 7, 5}};
-    for (const auto& f : kFaces) {
-      add_triangle(c[f[0]], c[f[1]], c[f[2]]);
-      add_triangle(c[f[0]], c[f[2]], c[f[3]]);
-    }
-  }
-
-  void add_sphere(const Sphere& s) {
-    if (!(s.radius > 0.0)) return;
-    // Quads of a UV sphere bulge in two directions: half the error per direction.
-    const int lon = segments_for(s.radius, voxel / 32.0);
-    const int lat = std::max(3, lon / 2);
-    auto at = [&](int i, int j) {
-      if (j == 0) return s.center + Vec3(0, 0, -s.radius);
-      if (j == lat) return s.center + Vec3(0, 0, s.radius);
-      const double theta = std::numbers::pi * j / lat - std::numbers::pi / 2;
-      const double phi = 2.0 * std::numbers::pi * (i % lon) / lon;
-      return s.center + s.radius * Vec3(std::cos(theta) * std::cos(phi),
-                                        std::cos(theta) * std::sin(phi), std::sin(theta));
-    };
-    for (int j = 0; j < lat; ++j) {
-      for (int i = 0; i < lon; ++i) {
-        const Vec3 a = at(i, j), b = at(i + 1, j), c = at(i + 1, j + 1), d = at(i, j + 1);
-        if (j != 0) add_triangle(a, b, c);
-        if (j != lat - 1) add_triangle(a, c, d);
-      }
-    }
-  }
-
-  void add_cone(const Cone& cone) {
-    const Vec3 axis = cone.apex - cone.base;
-    const double len = glm::length(axis);
-    if (!(len > 0.0)) return;
-    Vec3 u, v;
-    basis_for(axis / len, u, v);
-    const int n = segments_for(std::max(cone.base_radius, cone.apex_radius), voxel / 16.0);
-    auto ring = [&](const Vec3& c, double r, int i) {
-      const double phi = 2.0 * std::numbers::pi * (i % n) / n;
-      return c + r * (std::cos(phi) * u + std::sin(phi) * v);
-    };
-    for (int i = 0; i < n; ++i) {
-      const Vec3 b0 = ring(cone.base, cone.base_radius, i);
-      const Vec3 b1 = ring(cone.base, cone.base_radius, i + 1);
-      const Vec3 a0 = ring(cone.apex, cone.apex_radius, i);
-      const Vec3 a1 = ring(cone.apex, cone.apex_radius, i + 1);
-      if (cone.base_radius > 0.0) add_triangle(b0, b1, a1);
-      if (cone.apex_radius > 0.0) add_triangle(b0, a1, a0);
-    }
-  }
-
+  // Curved primitives become triangles within a chord error of h/16 (segments capped at 256);
+  // quadrics become their bounding box surface (tessellate.h).
   Status gather(const Scene& part) {
-    for (const PrimRef& ref : part.prims) {
-      switch (ref.kind) {
-        case PrimKind::Triangle: {
-          const Triangle& t = part.triangles[ref.index];
-          add_triangle(t.v0, t.v1, t.v2);
-          break;
-        }
-        case PrimKind::Sphere: add_sphere(part.spheres[ref.index]); break;
-        case PrimKind::Box: add_box_surface(part.boxes[ref.index].bounds); break;
-        case PrimKind::Cone: add_cone(part.cones[ref.index]); break;
-        case PrimKind::Quadric:
-          add_box_surface(part.quadrics[ref.index].bounds);
-          ++stats.quadrics_as_boxes;
-          break;
-      }
+    TessellateOptions options;
+    options.max_chord_error = voxel / 16.0;
+    options.min_segments = 6;
+    options.max_segments = 256;
+    std::vector<Triangle> mesh;
+    for (uint32_t i = 0; i < part.size(); ++i) {
+      if (part.prims[i].kind == PrimKind::Quadric) ++stats.quadrics_as_boxes;
+      mesh.clear();
+      tessellate_primitive(mesh, nullptr, part, i, options);
+      for (const Triangle& t : mesh) add_triangle(t.v0, t.v1, t.v2);
     }
     return Status::ok();
   }

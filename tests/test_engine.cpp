@@ -1,6 +1,7 @@
 // Frustum casting and ray walking against brute force on random scenes and cameras, plus the
 // hard cases: eye on split planes and cell corners, axis-parallel views, extreme field of view,
 // far-from-origin coordinates, one-primitive cells, closed meshes that must not leak.
+#include "src/tessellate.h"
 #include "tests/engine_util.h"
 
 #include <gtest/gtest.h>
@@ -41,6 +42,7 @@ Camera camera_at(const Vec3& eye, const Vec3& at, double fov = 60.0) {
 }
 
 TEST(EngineRandom, TwoHundredScenesMatchBruteForce) {
+  RecordProperty("methods", "ray walking; frustum casting with 2x2, 5x5 and 16x16 leaves: ids against brute force");
   std::mt19937_64 rng(20261122);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   size_t ties = 0, pixels = 0;
@@ -71,6 +73,7 @@ TEST(EngineRandom, TwoHundredScenesMatchBruteForce) {
 
 // The three SPD scenes with their own cameras at 129² and 257².
 TEST(EngineSpd, RingsTreeShellsMatchBruteForce) {
+  RecordProperty("methods", "ray walking; frustum casting with 2x2, 5x5 and 16x16 leaves: ids against brute force");
   for (const char* name : {"rings", "tree", "shells"}) {
     Scene scene;
     const std::string path = std::string(FRONTIER_DATA_DIR) + "/spd/" + name + ".nff";
@@ -87,6 +90,7 @@ TEST(EngineSpd, RingsTreeShellsMatchBruteForce) {
 }
 
 TEST(EngineHardCases, EyeOnSplitPlanesAndCellCorners) {
+  RecordProperty("methods", "ray walking; frustum casting with 2x2, 5x5 and 16x16 leaves: ids against brute force");
   std::mt19937_64 rng(7);
   Scene scene = testing::random_scene(rng, 150);
   const KdTree tree = KdTree::build(scene, {});
@@ -112,6 +116,7 @@ TEST(EngineHardCases, EyeOnSplitPlanesAndCellCorners) {
 }
 
 TEST(EngineHardCases, AxisParallelViewDirections) {
+  RecordProperty("methods", "ray walking; frustum casting with 2x2, 5x5 and 16x16 leaves: ids against brute force");
   std::mt19937_64 rng(11);
   Scene scene = testing::random_scene(rng, 120);
   const KdTree tree = KdTree::build(scene, {});
@@ -128,6 +133,7 @@ TEST(EngineHardCases, AxisParallelViewDirections) {
 }
 
 TEST(EngineHardCases, WideFieldOfViewAndOneMeshPerCell) {
+  RecordProperty("methods", "ray walking; frustum casting with 2x2, 5x5 and 16x16 leaves: ids against brute force");
   std::mt19937_64 rng(13);
   Scene scene = testing::random_scene(rng, 100);
   KdBuildOptions single;
@@ -146,6 +152,7 @@ TEST(EngineHardCases, WideFieldOfViewAndOneMeshPerCell) {
 
 // Cameras whose centre ray grazes a sphere and a cone (tangent to the surface).
 TEST(EngineHardCases, GrazingRaysOnSpheresAndCones) {
+  RecordProperty("methods", "ray walking; frustum casting with 2x2, 5x5 and 16x16 leaves: ids against brute force");
   Scene scene;
   scene.materials.push_back({});
   scene.add_sphere({Vec3(0.0), 1.0}, 0, 0);
@@ -167,6 +174,7 @@ TEST(EngineHardCases, GrazingRaysOnSpheresAndCones) {
 }
 
 TEST(EngineHardCases, FarFromOriginRendersTheSameIds) {
+  RecordProperty("methods", "ray walking, frustum casting of the scene moved by 1e6: ids against brute force of the unmoved scene");
   std::mt19937_64 rng(17);
   Scene scene = testing::random_scene(rng, 120);
   Camera cam = camera_at(Vec3(0.3, -2.8, 0.4), Vec3(0.0), 50.0);
@@ -194,6 +202,7 @@ TEST(EngineHardCases, FarFromOriginRendersTheSameIds) {
 
 // A closed UV sphere of triangles: no background pixel may appear inside its silhouette.
 TEST(EngineHardCases, ClosedTessellatedSphereLeaksNothing) {
+  RecordProperty("methods", "frustum casting, ray walking: no background pixel inside the silhouette, 100 directions");
   Scene scene;
   scene.materials.push_back({});
   const int stacks = 24, slices = 48;
@@ -234,6 +243,25 @@ TEST(EngineHardCases, ClosedTessellatedSphereLeaksNothing) {
     }
     ASSERT_EQ(leaks, 0u) << "direction " << k;
   }
+}
+
+// Primitives that no plane separates: shells.nff's stacks of overlapping spheres, tessellated
+// coarsely (138 k triangles). The cell-size cap must not force splits that copy nearly every
+// primitive into both children, which doubles the references at every level down to max_depth:
+// before forced splits were limited this build took 24 GB (8 segments: 21 GB).
+TEST(EngineHardCases, InseparableClustersKeepTheTreeSmall) {
+  RecordProperty("methods", "k-d tree build: references per primitive; frustum casting ids against brute force");
+  Scene spheres;
+  ASSERT_TRUE(load_scene(std::string(FRONTIER_DATA_DIR) + "/spd/shells.nff", spheres).is_ok());
+  TessellateOptions coarse;
+  coarse.segments = 6;
+  const Scene scene = tessellate(spheres, coarse);
+  const KdTree tree = KdTree::build(scene, {});
+  EXPECT_LT(double(tree.reference_count()), 40.0 * double(scene.size()))
+      << tree.reference_count() << " references for " << scene.size() << " primitives in " << tree.cells().size()
+      << " cells";
+  expect_matches_brute(scene, tree, View(camera_at(Vec3(4.5, -6.0, 3.0), Vec3(4.5, 0.0, 0.0), 50.0), 65, 65),
+                       "clusters");
 }
 
 }  // namespace
