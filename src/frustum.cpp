@@ -153,6 +153,8 @@ void FrustumCaster::begin(const View& view, SampleBuffer& buffer, CellMarks& mar
   }
   arenas_in_.clear();
   current_.clear();
+  if (anchor_width_ != view.width || anchor_height_ != view.height) plan_anchors(view.width, view.height);
+  anchors_next_ = 0;
   Job root;
   root.x0 = 0;
   root.y0 = 0;
@@ -187,6 +189,80 @@ void FrustumCaster::begin(const View& view, SampleBuffer& buffer, CellMarks& mar
     current_.clear();
     for (int q : kQuadrantOrder) current_.insert(current_.end(), buckets[size_t(q)].begin(), buckets[size_t(q)].end());
   }
+}
+
+void FrustumCaster::plan_anchors(int width, int height) {
+  anchor_width_ = width;
+  anchor_height_ = height;
+  anchors_.clear();
+  std::vector<uint8_t> seen(size_t(width) * size_t(height), 0);
+  auto add = [&](int x, int y) {
+    const size_t i = size_t(y) * size_t(width) + size_t(x);
+    if (!seen[i]) {
+      seen[i] = 1;
+      anchors_.push_back(uint32_t(i));
+    }
+  };
+  add(0, 0);
+  add(width - 1, 0);
+  add(0, height - 1);
+  add(width - 1, height - 1);
+  struct Rect {
+    int x0, y0, x1, y1;
+  };
+  std::vector<Rect> level = {{0, 0, width - 1, height - 1}};
+  while (!level.empty()) {
+    std::array<std::vector<Rect>, 4> buckets;  // by quadrant, for the interleaved order
+    for (const Rect& r : level) {
+      if (r.x1 - r.x0 <= kAnchorSpacing && r.y1 - r.y0 <= kAnchorSpacing) continue;
+      // The same midpoints as reconstruct() and the frusta.
+      const bool split_x = r.x1 - r.x0 >= 2, split_y = r.y1 - r.y0 >= 2;
+      const int xm = split_x ? (r.x0 + r.x1) / 2 : r.x0, ym = split_y ? (r.y0 + r.y1) / 2 : r.y0;
+      if (split_x) {
+        add(xm, r.y0);
+        add(xm, r.y1);
+      }
+      if (split_y) {
+        add(r.x0, ym);
+        add(r.x1, ym);
+      }
+      if (split_x && split_y) add(xm, ym);
+      buckets[0].push_back({r.x0, r.y0, xm, ym});
+      if (split_x) buckets[1].push_back({xm, r.y0, r.x1, ym});
+      if (split_y) buckets[2].push_back({r.x0, ym, xm, r.y1});
+      if (split_x && split_y) buckets[3].push_back({xm, ym, r.x1, r.y1});
+      if (!split_x) buckets[0].back().x1 = r.x1;
+      if (!split_y) buckets[0].back().y1 = r.y1;
+    }
+    level.clear();
+    for (int q : kQuadrantOrder) level.insert(level.end(), buckets[size_t(q)].begin(), buckets[size_t(q)].end());
+  }
+}
+
+// Walks the anchors not yet walked, coarse to fine, on every worker, until the budget is
+// spent. An anchor that reaches a missing cell is parked like any pixel.
+template <typename OutOfBudget>
+void FrustumCaster::walk_anchors(const OutOfBudget& out_of_budget) {
+  const int32_t eye_cell = tree_.locate(view_.eye, view_.forward);  // the tree may have grown
+  std::atomic<size_t> next{anchors_next_};
+  const size_t end = anchors_.size();
+  const size_t W = size_t(view_.width);
+  arena_->arena.execute([&] {
+    tbb::parallel_for(0, threads_, [&](int) {
+      const int slot = std::max(0, tbb::this_task_arena::current_thread_index());
+      Worker& w = *workers_[static_cast<size_t>(std::min(slot, threads_))];
+      while (!out_of_budget()) {
+        const size_t k = next.fetch_add(1, std::memory_order_relaxed);
+        if (k >= end) break;
+        Job pixel;
+        pixel.x0 = pixel.x1 = int32_t(anchors_[k] % W);
+        pixel.y0 = pixel.y1 = int32_t(anchors_[k] / W);
+        pixel.cell = eye_cell;
+        resolve_by_walking(pixel, w, false);
+      }
+    });
+  });
+  anchors_next_ = std::min(next.load(), end);
 }
 
 bool FrustumCaster::runnable() const {
@@ -264,6 +340,13 @@ bool FrustumCaster::run(const FrameBudget& budget, Counters& counters) {
   // atomic per pixel otherwise). A later run with a sample budget starts counting from there.
   count_samples_ = budget.samples > 0;
   if (count_samples_) samples_done_ = 0;
+  if (anchors_next_ < anchors_.size()) {
+    if (budget.ms > 0.0 || budget.samples > 0) {
+      walk_anchors(out_of_budget);
+    } else {
+      anchors_next_ = anchors_.size();
+    }
+  }
   bool interrupted = false;
   while (runnable() && !interrupted) {
     if (current_.empty()) finish_level();

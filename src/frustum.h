@@ -123,6 +123,9 @@ class FrustumCaster {
   void split(const Job& job, const Incidence* list, uint32_t n, Worker& w);
   void confirm(int x, int y, uint32_t prim, double t, const Ray& ray, Worker& w);
   void finish_level();
+  void plan_anchors(int width, int height);
+  template <typename OutOfBudget>
+  void walk_anchors(const OutOfBudget& out_of_budget);
 
   const Scene& scene_;
   const KdTree& tree_;
@@ -144,6 +147,17 @@ class FrustumCaster {
   size_t cell_cache_count_ = 0;
   std::unique_ptr<CellCache[]> cell_cache_;
   mutable std::array<std::mutex, 64> cell_locks_;
+
+  // Reconstruction anchors (§5.2, §5.4): the pixels at the corners, edge midpoints and centres
+  // of the quadrant subdivision (the one frusta and reconstruction use) down to rectangles of
+  // kAnchorSpacing pixels, coarse to fine. A budgeted image walks them before its frusta, so an
+  // image stopped early still has exact samples spread over the screen where reconstruction
+  // interpolates from (frusta that finish whole blocks would leave it a few confirmed blocks).
+  // Unbudgeted runs skip them: the frusta cover every pixel anyway.
+  static constexpr int kAnchorSpacing = 16;
+  std::vector<uint32_t> anchors_;  // pixel indices, for an image of anchor_width_ × anchor_height_
+  int anchor_width_ = 0, anchor_height_ = 0;
+  size_t anchors_next_ = 0;        // first anchor of this image not yet walked
 
   std::vector<Job> current_;                      // jobs of the current level not yet run
   std::vector<std::vector<Incidence>> arenas_in_;  // incidence lists the current level reads

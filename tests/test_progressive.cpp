@@ -100,6 +100,44 @@ TEST(Progressive, SampleBudgetLeavesSamplesSpreadOverTheScreen) {
   for (size_t q : quarter) EXPECT_GT(q, 0u);
 }
 
+// A small budget still spreads exact samples over the whole screen: the reconstruction anchors
+// (corners and midpoints of the quadrant subdivision) are walked before the frusta, which
+// would otherwise spend the budget on a few whole blocks (background fills of 16×16 pixels).
+TEST(Progressive, SmallBudgetConfirmsSamplesInEveryBlock) {
+  const Scene scene = lit_scene(true, false);
+  const KdTree tree = KdTree::build(scene, {});
+  const View view(front_camera(), 257, 257);
+  const Shader shader(scene, tree);
+  SampleBuffer full;
+  RenderOptions options;
+  options.threads = 2;
+  render_frame(scene, tree, view, options, full);
+  SampleBuffer buffer;
+  CellMarks marks;
+  FrustumCaster caster(scene, tree, shader, 2);
+  caster.begin(view, buffer, marks, true, true);
+  Counters counters;
+  FrameBudget budget;
+  budget.samples = view.pixels() / 50;  // 2 %
+  caster.run(budget, counters);
+  ASSERT_LT(buffer.confirmed_count(), view.pixels() / 10);
+  int empty_blocks = 0;
+  for (int by = 0; by < 8; ++by) {
+    for (int bx = 0; bx < 8; ++bx) {
+      size_t n = 0;
+      for (int y = 32 * by; y < 32 * by + 32; ++y) {
+        for (int x = 32 * bx; x < 32 * bx + 32; ++x) n += buffer.confirmed(size_t(y) * 257 + size_t(x)) ? 1 : 0;
+      }
+      empty_blocks += n == 0 ? 1 : 0;
+    }
+  }
+  EXPECT_EQ(empty_blocks, 0) << "of 64 blocks of 32×32 pixels";
+  // Exact samples: every confirmed pixel shows what the complete render shows there.
+  size_t differ = 0;
+  for (size_t i = 0; i < view.pixels(); ++i) differ += buffer.confirmed(i) && buffer.prim(i) != full.prim(i) ? 1 : 0;
+  EXPECT_EQ(differ, 0u);
+}
+
 // The §5.4 recursion written plainly (sequential, one rectangle at a time): reconstruct() fills
 // tiles in parallel and must give exactly this, for every size and sample pattern.
 void reference_fill(const SampleBuffer& buf, std::vector<Rgb>& img, std::vector<uint8_t>& known, int w, int x0,
