@@ -1,0 +1,150 @@
+#!/usr/bin/env bash
+# report: frontier measured side by side — Embree, the I/O floor, what accuracy costs in time,
+# the numerical hard cases, and the working set over a walkthrough — in one Markdown report with
+# PNG plots, every ratio measured in the same run on this machine.
+#
+#   tests/bench/report.sh OUT_DIR [--quick] [--build DIR] [--triangles N] [--frames N]
+#
+#   OUT_DIR        where REPORT.md, the plots (*.png) and the raw measurements (raw/) go
+#   --quick        small models and few repeats (minutes; for checking the pipeline)
+#   --build DIR    build directory (default build-bench; configured Release with benchmarks)
+#   --triangles N  building size for the preprocessing and walkthrough sections (default 20000000)
+#   --frames N     walkthrough frames (default 300)
+#
+# Installs what it needs (Debian 12, as root): the project's dependencies, Embree 3 (a benchmark
+# dependency only), gnuplot and python3. Takes about 30 minutes on 2 cores by default.
+set -euo pipefail
+
+out=""
+quick=0
+build=build-bench
+triangles=20000000
+frames=300
+while [[ $# -gt 0 ]]; do
+  case "$1" in
+    --quick) quick=1; shift ;;
+    --build) build="$2"; shift 2 ;;
+    --triangles) triangles="$2"; shift 2 ;;
+    --frames) frames="$2"; shift 2 ;;
+    -h|--help) sed -n '2,15p' "$0"; exit 0 ;;
+    -*) echo "report: unknown option $1" >&2; exit 2 ;;
+    *) [[ -z "$out" ]] || { echo "report: one OUT_DIR only" >&2; exit 2; }; out="$1"; shift ;;
+  esac
+done
+[[ -n "$out" ]] || { echo "usage: tests/bench/report.sh OUT_DIR [--quick] [--build DIR] [--triangles N] [--frames N]" >&2; exit 2; }
+
+root="$(cd "$(dirname "$0")/../.." && pwd)"
+cd "$root"
+spd="$root/../shared/data/spd"
+[[ -d "$spd" ]] || { echo "report: SPD scenes not found at $spd" >&2; exit 2; }
+if [[ $quick == 1 ]]; then
+  triangles=2000000
+  frames=60
+  sizes="129 257"
+  scene_triangles=300000
+  repeats=1
+else
+  sizes="513 1025"
+  scene_triangles=1000000
+  repeats=3
+fi
+
+echo "== installing what is missing"
+.ci/install-deps
+missing=()
+for p in libembree-dev gnuplot-nox python3; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [[ ${#missing[@]} -gt 0 ]]; then
+  if [[ $(id -u) != 0 ]]; then echo "report: install ${missing[*]} (needs root)" >&2; exit 2; fi
+  apt-get install -y --no-install-recommends "${missing[@]}" >/dev/null
+fi
+
+echo "== building ($build)"
+if [[ -f "$build/CMakeCache.txt" ]]; then  # an existing build directory keeps its build type
+  cmake -S . -B "$build" -DFRONTIER_BUILD_BENCHMARKS=ON >/dev/null
+else
+  cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release -DFRONTIER_BUILD_BENCHMARKS=ON >/dev/null
+fi
+cmake --build "$build"
+build_type="$(sed -n 's/^CMAKE_BUILD_TYPE:STRING=//p' "$build/CMakeCache.txt")"
+[[ -x "$build/tests/bench/bench_embree" ]] || { echo "report: bench_embree was not built (Embree 3 not found)" >&2; exit 1; }
+
+mkdir -p "$out/raw"
+out="$(cd "$out" && pwd)"
+raw="$out/raw"
+work="$out/work"
+mkdir -p "$work"
+gen="$build/data_gen/frontier-gen"
+fbuild="$build/preprocess/frontier-build"
+view="$build/viewer/frontier-view"
+run() { echo "\$ $*" >> "$raw/commands.txt"; "$@"; }
+: > "$raw/commands.txt"
+
+echo "== machine"
+{
+  echo "{"
+  echo "  \"cpu\": \"$(lscpu | sed -n 's/^Model name: *//p' | head -n 1)\","
+  echo "  \"cores\": $(nproc),"
+  echo "  \"memory_kib\": $(sed -n 's/^MemTotal: *\([0-9]*\).*/\1/p' /proc/meminfo),"
+  echo "  \"kernel\": \"$(uname -r)\","
+  echo "  \"os\": \"$(. /etc/os-release && echo "$PRETTY_NAME")\","
+  echo "  \"compiler\": \"$(c++ --version | head -n 1)\","
+  echo "  \"build_type\": \"$build_type\","
+  echo "  \"embree\": \"$(dpkg-query -W -f='${Version}' libembree-dev 2>/dev/null || echo unknown)\","
+  echo "  \"commit\": \"$(git rev-parse --short HEAD 2>/dev/null || echo unknown)\","
+  echo "  \"date\": \"$(date -u +%Y-%m-%dT%H:%MZ)\","
+  echo "  \"quick\": $quick"
+  echo "}"
+} > "$raw/machine.json"
+
+echo "== models"
+building="$work/building.ply"
+[[ -f "$building" ]] || run "$gen" building --triangles "$triangles" -o "$building" --quiet
+terrain="$work/terrain.ply"
+[[ -f "$terrain" ]] || run "$gen" terrain --triangles "$((triangles / 5))" -o "$terrain" --quiet
+small_building="$work/building_small.ply"
+[[ -f "$small_building" ]] || run "$gen" building --triangles "$scene_triangles" -o "$small_building" --quiet
+small_terrain="$work/terrain_small.ply"
+[[ -f "$small_terrain" ]] || run "$gen" terrain --triangles "$scene_triangles" -o "$small_terrain" --quiet
+small_path="$work/walk_small.cam"
+run "$gen" path --model "$small_building" --kind walk --frames 60 -o "$small_path"
+
+echo "== 1. ray throughput against Embree"
+# shellcheck disable=SC2086
+run "$build/tests/bench/bench_embree" --sizes $sizes --threads 2 --repeats "$repeats" --segments 16 --json "$raw/embree.jsonl" \
+  "$spd/rings.nff" "$spd/tree.nff" "$spd/shells.nff" "$small_terrain" "$small_building" | tee "$raw/embree.md"
+
+# The same two frontier methods on the curved (untessellated) SPD scenes, for contrast.
+# shellcheck disable=SC2086
+run "$build/tests/bench/bench_engine" "$spd/rings.nff" "$spd/tree.nff" "$spd/shells.nff" --sizes $sizes --threads 2 \
+  --repeats "$repeats" | tee "$raw/engine.md"
+
+echo "== 2. preprocessing against the I/O floor"
+run "$build/tests/bench/bench_build" "$building" "$terrain" --codecs draco raw --bits 16 --threads 2 \
+  -o "$work/bench_build.frontier" | tee "$raw/build.md"
+
+echo "== 3. what accuracy costs in time"
+run "$build/tests/bench/bench_accuracy" --model "$small_building" --path "$small_path" --dir "$work/accuracy" \
+  --reuse --json "$raw/accuracy.jsonl" | tee "$raw/accuracy.md"
+
+echo "== 4. numerical stability: the hard-case suite"
+filter="EngineHardCases.*:EngineRandom.*:EngineSpd.*:TriangleWatertight.*:TriangleIntersect.*:SphereIntersect.*"
+filter+=":ConeIntersect.*:BoxIntersect.*:QuadraticSolve.*:QuadricIntersect.*:PrimitiveFarFromOrigin.*"
+filter+=":CellCodecLattice.*:BuildStore.NoCracksBetweenCells:*FarFromOrigin*:*Degenerate*"
+(cd "$build/tests" && run ./frontier_tests --gtest_filter="$filter" --gtest_output="json:$raw/stability.json" \
+  > "$raw/stability.log" 2>&1) || echo "report: some hard cases FAILED (see raw/stability.log)"
+
+echo "== 5. working set over the building walk"
+store="$work/building.frontier"
+path="$work/walk.cam"
+[[ -f "$store" ]] || run "$fbuild" "$building" -o "$store" --threads 2 --no-walkable --quiet
+run "$gen" path --model "$building" --kind walk --frames "$frames" -o "$path"
+run "$view" "$store" --headless --path "$path" --size 640x480 --threads 2 --frame-ms 33 --cache 512M \
+  --report "$raw/walk_pegged.jsonl" > /dev/null
+run "$view" "$store" --headless --path "$path" --size 640x480 --threads 2 --cache 512M --sync-paging --oracle \
+  --report "$raw/walk_sync.jsonl" > /dev/null
+
+echo "== writing $out/REPORT.md"
+python3 tests/bench/report.py "$out"
+echo "report: $out/REPORT.md"
