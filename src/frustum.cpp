@@ -72,6 +72,7 @@ struct FrustumCaster::Incidence {
 
 struct FrustumCaster::CellCache {
   std::atomic<uint32_t> stamp{0};  // frame whose entries these are
+  std::atomic<uint32_t> seen{0};   // frame in which a lone pixel walk tested the cell directly
   std::vector<Incidence> entries;
 };
 
@@ -307,6 +308,7 @@ void FrustumCaster::tree_changed() {
     for (size_t c = 0; c < cell_cache_count_; ++c) {
       bigger[c].entries = std::move(cell_cache_[c].entries);
       bigger[c].stamp.store(cell_cache_[c].stamp.load(std::memory_order_relaxed), std::memory_order_relaxed);
+      bigger[c].seen.store(cell_cache_[c].seen.load(std::memory_order_relaxed), std::memory_order_relaxed);
     }
     cell_cache_ = std::move(bigger);
     cell_cache_count_ = capacity;
@@ -482,13 +484,25 @@ RayHit FrustumCaster::walk_pixel(int x, int y, const Ray& ray, double tmin, int3
     const KdTree::Exit e = tree_.exit(cell, ray);
     const double tmax = e.t + cell_slack(e.t, slack_scale_);
     RayHit best;
-    const std::vector<Incidence>& entries = cell_entries(cell);
-    w.counters.primitives_tested += entries.size();
-    for (const Incidence& inc : entries) {
-      if (inc.distance > std::min(best.t, tmax)) break;  // sorted: the rest lie farther
-      if (x < inc.x0 || x > inc.x1 || y < inc.y0 || y > inc.y1) continue;
-      const uint32_t prim = tree_.ref(inc.ref);
-      offer_primitive(scene_, prim, ray, tmin, tmax, best, w.counters);
+    if (first_pixel_visit(cell)) {
+      // The first pixel to cross a cell no frustum has listed this frame tests its references
+      // directly: listing them (screen rectangles, sorted) pays only when more pixels follow,
+      // and through a fine tree seen from afar most cells are crossed by a pixel or two. The
+      // nearest hit is the same either way (the list only skips references that cannot win).
+      const KdTree::Cell& c = tree_.cell(cell);
+      w.counters.primitives_tested += c.count;
+      for (uint32_t r = c.first; r < c.first + c.count; ++r) {
+        offer_primitive(scene_, tree_.ref(r), ray, tmin, tmax, best, w.counters);
+      }
+    } else {
+      const std::vector<Incidence>& entries = cell_entries(cell);
+      w.counters.primitives_tested += entries.size();
+      for (const Incidence& inc : entries) {
+        if (inc.distance > std::min(best.t, tmax)) break;  // sorted: the rest lie farther
+        if (x < inc.x0 || x > inc.x1 || y < inc.y0 || y > inc.y1) continue;
+        const uint32_t prim = tree_.ref(inc.ref);
+        offer_primitive(scene_, prim, ray, tmin, tmax, best, w.counters);
+      }
     }
     if (best.hit()) return best;
     cell = tree_.arrival(cell, ray, e);
@@ -646,6 +660,13 @@ void FrustumCaster::process(Job job, Worker& w) {
 // rectangle against a frustum's pixel rectangle is the ternary classification against its
 // four planes (every pixel column and row is one plane through the eye), done once per frame
 // instead of once per frustum. Bounds wholly behind the near plane are left out.
+bool FrustumCaster::first_pixel_visit(int32_t cell) const {
+  CellCache& cache = cell_cache_[size_t(cell)];
+  if (cache.stamp.load(std::memory_order_acquire) == frame_) return false;  // listed already
+  if (cache.seen.load(std::memory_order_relaxed) == frame_) return false;
+  return cache.seen.exchange(frame_, std::memory_order_relaxed) != frame_;
+}
+
 const std::vector<FrustumCaster::Incidence>& FrustumCaster::cell_entries(int32_t cell) const {
   CellCache& cache = cell_cache_[size_t(cell)];
   if (cache.stamp.load(std::memory_order_acquire) == frame_) return cache.entries;

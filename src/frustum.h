@@ -109,6 +109,8 @@ class FrustumCaster {
   };
   struct CellCache;
   const std::vector<Incidence>& cell_entries(int32_t cell) const;
+  // True for the first lone pixel walk into a cell not yet listed this frame (see walk_pixel).
+  bool first_pixel_visit(int32_t cell) const;
   // Walks one pixel; parks it (and returns no hit with `parked` set) at a missing cell.
   RayHit walk_pixel(int x, int y, const Ray& ray, double tmin, int32_t cell, Worker& w, bool& parked) const;
   bool gate_missing(int32_t cell) const;
