@@ -29,26 +29,35 @@ const char* method_name(Method method) {
   return "?";
 }
 
-Counters render_frame(const Scene& scene, const KdTree& tree, const View& view,
-                      const RenderOptions& options, SampleBuffer& buffer) {
+struct Renderer::Arena {
+  explicit Arena(int threads) : arena(threads) {}
+  tbb::task_arena arena;
+};
+
+Renderer::Renderer(const Scene& scene, const KdTree& tree, int threads)
+    : scene_(scene),
+      tree_(tree),
+      threads_(threads > 0 ? threads : tbb::info::default_concurrency()),
+      shader_(scene, tree),
+      arena_(std::make_unique<Arena>(threads_)) {}
+
+Renderer::~Renderer() = default;
+
+Counters Renderer::render(const View& view, const RenderOptions& options, SampleBuffer& buffer) {
   Counters total;
-  const Shader shader(scene, tree);
-  CellMarks marks;
   const auto start = std::chrono::steady_clock::now();
   if (options.method == Method::Frustum) {
-    FrustumCaster caster(scene, tree, shader, options.threads);
-    caster.set_leaf_pixels(options.leaf_pixels);
-    caster.begin(view, buffer, marks, options.shade, options.shadows);
-    caster.run(options.budget, total);
+    if (!caster_) caster_ = std::make_unique<FrustumCaster>(scene_, tree_, shader_, threads_);
+    caster_->set_leaf_pixels(options.leaf_pixels);
+    caster_->begin(view, buffer, marks_, options.shade, options.shadows);
+    caster_->run(options.budget, total);
   } else {
     buffer.resize(view.width, view.height);
     buffer.begin_frame();
-    marks.resize(tree.cells().size());
-    marks.begin_frame();
-    const int threads = options.threads > 0 ? options.threads : tbb::info::default_concurrency();
-    tbb::task_arena arena(threads);
+    marks_.resize(tree_.cells().size());
+    marks_.begin_frame();
     tbb::enumerable_thread_specific<Counters> local;
-    arena.execute([&] {
+    arena_->arena.execute([&] {
       tbb::parallel_for(tbb::blocked_range2d<int>(0, view.height, 8, 0, view.width, 8),
                         [&](const tbb::blocked_range2d<int>& r) {
         Counters& c = local.local();
@@ -57,12 +66,11 @@ Counters render_frame(const Scene& scene, const KdTree& tree, const View& view,
             const Ray ray = view.ray(x, y);
             const double tmin = view.tmin(ray);
             const RayHit hit = options.method == Method::Brute
-                                   ? brute_force_hit(scene, ray, tmin, c)
-                                   : cast_ray(scene, tree, ray, tmin, c, &marks);
+                                   ? brute_force_hit(scene_, ray, tmin, c)
+                                   : cast_ray(scene_, tree_, ray, tmin, c, &marks_);
             const size_t i = static_cast<size_t>(y) * static_cast<size_t>(view.width) + static_cast<size_t>(x);
             buffer.claim(i);
-            const Rgb color = options.shade ? shader.shade(hit.prim, ray, hit.t, options.shadows, c)
-                                            : Rgb{};
+            const Rgb color = options.shade ? shader_.shade(hit.prim, ray, hit.t, options.shadows, c) : Rgb{};
             buffer.set(i, hit.prim, hit.t, color);
             ++c.rays;
             ++c.samples;
@@ -74,8 +82,14 @@ Counters render_frame(const Scene& scene, const KdTree& tree, const View& view,
     for (const Counters& c : local) total += c;
     total.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   }
-  reconstruct(buffer, shader.background());
+  reconstruct(buffer, shader_.background());
   return total;
+}
+
+Counters render_frame(const Scene& scene, const KdTree& tree, const View& view,
+                      const RenderOptions& options, SampleBuffer& buffer) {
+  Renderer renderer(scene, tree, options.threads);
+  return renderer.render(view, options, buffer);
 }
 
 std::vector<uint32_t> id_image(const Scene& scene, const SampleBuffer& buffer) {

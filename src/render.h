@@ -11,6 +11,7 @@
 #include "src/shading.h"
 #include "src/view.h"
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -31,8 +32,31 @@ struct RenderOptions {
   int leaf_pixels = FrustumCaster::kDefaultLeafPixels;  // frustum casting: walk-per-pixel size
 };
 
-// Renders `view` into `buffer` (which keeps per-pixel first-hit primitive, t and colour) and
-// reconstructs unsampled pixels. Returns the frame's counters.
+// Renders frames of one scene and tree, keeping what a viewer keeps between frames (the
+// frustum caster with its per-cell lists and pixel stamps, cell marks, the thread arena), so
+// each frame pays for its own work only. The first frame allocates per-cell state (for a
+// million-triangle tree that is several times the cost of the frame itself).
+class Renderer {
+ public:
+  // `threads` render threads (0: all cores).
+  Renderer(const Scene& scene, const KdTree& tree, int threads);
+  ~Renderer();
+  // Renders `view` into `buffer` (which keeps per-pixel first-hit primitive, t and colour) and
+  // reconstructs unsampled pixels. options.threads is the constructor's. Returns the counters.
+  Counters render(const View& view, const RenderOptions& options, SampleBuffer& buffer);
+
+ private:
+  const Scene& scene_;
+  const KdTree& tree_;
+  int threads_;
+  Shader shader_;
+  CellMarks marks_;
+  std::unique_ptr<FrustumCaster> caster_;  // made on first use
+  struct Arena;
+  std::unique_ptr<Arena> arena_;
+};
+
+// One frame with a fresh Renderer.
 Counters render_frame(const Scene& scene, const KdTree& tree, const View& view,
                       const RenderOptions& options, SampleBuffer& buffer);
 

@@ -24,20 +24,22 @@ struct Run {
   Counters counters;
 };
 
-// Best of `repeats` (the least disturbed run), visibility only.
+// Best of `repeats` frames (the least disturbed), visibility only, with one Renderer as a viewer
+// keeps it: the first frame's allocation of per-cell state is not what a frame costs.
 Run measure(const Scene& scene, const KdTree& tree, const View& view, Method method, int threads, int repeats,
             int leaf) {
   Run best;
   best.ms = kInfinity;
+  Renderer renderer(scene, tree, threads);
+  SampleBuffer buffer;
   for (int r = 0; r < repeats; ++r) {
     RenderOptions options;
     options.method = method;
     options.threads = threads;
     options.shade = false;
     options.leaf_pixels = leaf;
-    SampleBuffer buffer;
     const auto t0 = std::chrono::steady_clock::now();
-    const Counters c = render_frame(scene, tree, view, options, buffer);
+    const Counters c = renderer.render(view, options, buffer);
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     if (ms < best.ms) best = {ms, c};
   }
