@@ -56,7 +56,7 @@ def gnuplot(script, name):
     (relative, so OUT/REPORT.md and OUT/plots/ can be copied together)."""
     os.makedirs(os.path.join(OUT, "plots"), exist_ok=True)
     full = "set terminal pngcairo size 900,520 font 'DejaVu Sans,10'\nset output '%s'\n" % os.path.join(OUT, "plots", name)
-    full += "set grid\nset key outside right top\n" + script
+    full += "set termoption noenhanced\nset grid\nset key outside right top\n" + script
     subprocess.run(["gnuplot"], input=full.encode(), check=True)
     return "![%s](plots/%s)" % (name, name)
 
@@ -174,17 +174,19 @@ def section_embree():
                    "primitives, not tessellated; `bench_engine`):\n")
         out.append(engine + "\n")
     out.append(
-        "**Why.** Frustum casting saves work when a frustum advances through cells as one (four corner rays, one "
-        "incidence list for all its pixels) and when the §4 fill applies: all four corners hit the same convex "
-        "element, so every pixel of the frustum is resolved against that element and the few that could occlude it. "
-        "A curved SPD sphere is one convex element covering many frusta; after tessellation it is ~200 triangles, "
-        "so a triangle edge crosses nearly every 16×16 frustum, the fill never applies, and frusta split down to the "
-        "leaf size and walk their pixels one by one — ray walking plus the frustum bookkeeping on top. Mesh scenes "
-        "(terrain, building) are the same case. Against Embree frontier loses everywhere: it intersects in double "
-        "precision with a watertight scalar test (Embree: single precision, SIMD BVH nodes, 8-wide packet kernels), "
-        "and its k-d tree's leaves are paging cells sized for the store, not for tracing alone. What frontier's tree "
-        "buys instead is exact out-of-core visibility: the cells a frustum enters are exactly the pages to load "
-        "(section 5), which no Embree BVH offers.\n")
+        "**Why.** Frustum casting saves work when a frustum advances through cells as one (four corner rays, "
+        "one incidence list for all its pixels) and when the §4 fill applies: all four corners hit the same "
+        "convex element, so every pixel of the frustum is resolved against that element and the few that could "
+        "occlude it. It wins where rays cross many cells before their hit (the SPD scenes' wide empty space "
+        "between the objects: compare the cell visits per ray in the curved table above) and loses where pixels "
+        "end on many small triangles close together (terrain, the tree's thin branches): a triangle edge then "
+        "crosses nearly every 16×16 frustum, the fill never applies (a tessellated sphere is ~200 triangles, "
+        "the curved one a single element), and frusta split down to the leaf size and walk their pixels one by "
+        "one — ray walking plus the frustum bookkeeping on top. Against Embree frontier loses everywhere: it "
+        "intersects in double precision with a watertight scalar test (Embree: single precision, SIMD BVH "
+        "nodes, 8-wide packet kernels), and its k-d tree's leaves are paging cells sized for the store, not for "
+        "tracing alone. What frontier's tree buys instead is exact out-of-core visibility: the cells a frustum "
+        "enters are exactly the pages to load (section 5), which no Embree BVH offers.\n")
 
 
 def section_build():
@@ -224,7 +226,9 @@ def section_build():
 def knob_plot(rows, knob, x, y, xlabel, ylabel, name, logx=False, logy=False, label=None):
     def finite(v):
         return isinstance(v, (int, float)) and v == v and abs(v) != float("inf")
-    pts = [(r[x], r[y], r.get(label, r.get("value"))) for r in rows
+    def tag(v):
+        return int(v) if isinstance(v, float) and v.is_integer() else v
+    pts = [(r[x], r[y], tag(r.get(label, r.get("value")))) for r in rows
            if r.get("knob") == knob and finite(r.get(x)) and finite(r.get(y)) and (not logy or r[y] > 0)]
     if not pts:
         return ""
