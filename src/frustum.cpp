@@ -250,8 +250,7 @@ void FrustumCaster::walk_anchors(const OutOfBudget& out_of_budget) {
   const size_t W = size_t(view_.width);
   arena_->arena.execute([&] {
     tbb::parallel_for(0, threads_, [&](int) {
-      const int slot = std::max(0, tbb::this_task_arena::current_thread_index());
-      Worker& w = *workers_[static_cast<size_t>(std::min(slot, threads_))];
+      Worker& w = current_worker();
       while (!out_of_budget()) {
         const size_t k = next.fetch_add(1, std::memory_order_relaxed);
         if (k >= end) break;
@@ -264,6 +263,12 @@ void FrustumCaster::walk_anchors(const OutOfBudget& out_of_budget) {
     });
   });
   anchors_next_ = std::min(next.load(), end);
+}
+
+// The worker record of the calling thread of the caster's arena.
+FrustumCaster::Worker& FrustumCaster::current_worker() {
+  const int slot = std::max(0, tbb::this_task_arena::current_thread_index());
+  return *workers_[static_cast<size_t>(std::min(slot, threads_))];
 }
 
 bool FrustumCaster::runnable() const {
@@ -356,8 +361,7 @@ bool FrustumCaster::run(const FrameBudget& budget, Counters& counters) {
     level.swap(current_);
     arena_->arena.execute([&] {
       tbb::parallel_for(tbb::blocked_range<size_t>(0, level.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
-        const int slot = std::max(0, tbb::this_task_arena::current_thread_index());
-        Worker& w = *workers_[static_cast<size_t>(std::min(slot, threads_))];
+        Worker& w = current_worker();
         for (size_t i = r.begin(); i != r.end(); ++i) {
           if (out_of_budget()) {
             w.remaining.push_back(level[i]);

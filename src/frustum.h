@@ -125,6 +125,7 @@ class FrustumCaster {
   void split(const Job& job, const Incidence* list, uint32_t n, Worker& w);
   void confirm(int x, int y, uint32_t prim, double t, const Ray& ray, Worker& w);
   void finish_level();
+  Worker& current_worker();
   void plan_anchors(int width, int height);
   template <typename OutOfBudget>
   void walk_anchors(const OutOfBudget& out_of_budget);
