@@ -4,9 +4,11 @@
 #include "preprocess/spill.h"
 #include "preprocess/walkable_grid.h"
 #include "src/kdtree.h"
+#include "src/portals.h"
 #include "src/progress.h"
 #include "src/scene_reader.h"
 #include "src/store_model.h"
+#include "src/tessellate.h"
 #include "store/page_file.h"
 #include "store/store_file.h"
 
@@ -123,6 +125,7 @@ class StoreBuilder {
   Result<BuildReport> run() {
     const auto start = std::chrono::steady_clock::now();
     if (Status s = check_options(); !s) return s;
+    if (Status s = read_portals(); !s) return s;
     auto temp = TempDir::create(options_.output);
     if (!temp) return temp.status();
     temp_.emplace(std::move(*temp));
@@ -187,6 +190,20 @@ class StoreBuilder {
     return Status::ok();
   }
 
+  // The cells and portals of the single input's sidecar, kept serialized until the end. Rooms
+  // and portals describe one model: with several inputs the store is no longer that model.
+  Status read_portals() {
+    if (!options_.portals || options_.inputs.size() != 1) return Status::ok();
+    const std::string sidecar = fs::path(options_.inputs[0]).replace_extension(".json").string();
+    auto graph = PortalGraph::from_sidecar(sidecar);
+    if (!graph) return graph.status().code() == Status::Code::NotFound ? Status::ok() : graph.status();
+    portals_ = graph->serialize();
+    report_.portals_sidecar = sidecar;
+    report_.portal_rooms = graph->room_count();
+    report_.portals = graph->portal_count();
+    return Status::ok();
+  }
+
   // Stage 1: every input into one spill file.
   Status ingest(Part& root) {
     root.path = temp_->file("ingest");
@@ -222,6 +239,11 @@ class StoreBuilder {
           ++local;
         }
         if (batch.size() >= kBatch || (end && batch.size() > 0)) {
+          if (options_.tessellate > 0 && batch.triangles.size() < batch.size()) {
+            TessellateOptions t;
+            t.segments = options_.tessellate;
+            batch = tessellate(batch, t);  // keeps the batch's degenerate count, adds its own
+          }
           for (uint32_t i = 0; i < batch.size(); ++i) {
             const Aabb b = batch.prim_bounds(i);
             bounds_.extend(b);
@@ -545,6 +567,9 @@ class StoreBuilder {
     if (Status s = writer_->add_section(kModelSection, info_.to_bytes()); !s) return s;
     if (Status s = writer_->add_section(kTreeSection, encode_tree(nodes_)); !s) return s;
     if (Status s = writer_->add_section(kCellsSection, encode_cells(cells_)); !s) return s;
+    if (!portals_.empty()) {
+      if (Status s = writer_->add_section(kPortalsSection, portals_); !s) return s;
+    }
     if (Status s = writer_->finish(); !s) return s;
     std::error_code ec;
     report_.store_bytes = fs::file_size(options_.output, ec);
@@ -567,6 +592,7 @@ class StoreBuilder {
   StoreModelInfo info_;
   std::vector<KdTree::Node> nodes_;
   std::vector<StoreCell> cells_;
+  std::vector<uint8_t> portals_;  // the serialized PortalGraph; empty: no portals section
   BuildReport report_;
 };
 

@@ -12,8 +12,13 @@
 //               (cells of at most --cell-prims references), every cell encoded (in parallel)
 //               and written as one page. A part that turns out larger than planned is split
 //               again on disk the same way before it is built.
-//   5. finish   the sections model, tree, cells (and sdf with --walkable) and the footer;
-//               StoreWriter's NAME.tmp + fsync + rename makes the store appear atomically.
+//   5. finish   the sections model, tree, cells (sdf with --walkable, portals with a building
+//               sidecar) and the footer; StoreWriter's NAME.tmp + fsync + rename makes the
+//               store appear atomically.
+//
+// The sidecar of a single input (MODEL.json beside MODEL, written by frontier-gen building) is
+// read before anything else, so a bad one fails the build at once; only its cells-and-portals
+// graph is kept (src/portals.h).
 //
 // Memory: the spill buffers, one part in core (estimated at kBytesPerPrimitive per primitive)
 // and the pages being encoded. Temporary files live in a directory beside the output
@@ -41,6 +46,14 @@ struct BuildOptions {
   bool walkable = false;
   double sdf_voxel = 0.0;               // 0: chosen from the model's extent
   double walk_radius = 0.25;            // the walker's clearance; the grid's band is wider
+  // With exactly one input whose sidecar (MODEL.json beside MODEL) lists rooms and portals, store
+  // them as section "portals". A missing sidecar, or one without rooms and portals, adds
+  // nothing; a malformed one fails the build.
+  bool portals = true;
+  // When > 0, spheres, cones and boxes are tessellated into closed triangle meshes with this
+  // many segments around a circle (src/tessellate.h) as they are read: a store of triangles
+  // only, which the rasterizing visibility classes draw (they skip other primitives).
+  int tessellate = 0;
   bool quiet = false;
   // Most primitives built in core at once; 0 derives it from `memory` (kBytesPerPrimitive).
   // Tests set it to force the out-of-core path on small models.
@@ -63,6 +76,9 @@ struct BuildReport {
   uint64_t page_bytes = 0;              // payloads of all pages
   uint64_t sdf_bytes = 0;               // the collision grid section (--walkable)
   uint64_t sdf_memory = 0;              // memory the grid held at the end of the build
+  std::string portals_sidecar;          // the sidecar the portals section came from (empty: none)
+  uint64_t portal_rooms = 0;
+  uint64_t portals = 0;
   double seconds = 0.0;
   double ingest_seconds = 0.0, spill_seconds = 0.0, build_seconds = 0.0, encode_seconds = 0.0;
 };

@@ -31,7 +31,9 @@ int main(int argc, char** argv) {
   CLI::App app{
       "frontier-build: stream PLY/OBJ/OFF/NFF models into one paged, compressed, checksummed k-d tree store.\n"
       "Memory stays within --memory (plus buffers): parts of the model that do not fit are split on disk\n"
-      "first. The store appears atomically (OUT.tmp, fsync, rename); a failed build leaves no OUT.",
+      "first. The store appears atomically (OUT.tmp, fsync, rename); a failed build leaves no OUT.\n"
+      "A single input with a frontier-gen sidecar (MODEL.json beside MODEL) that lists rooms and portals\n"
+      "also stores that cells-and-portals graph (section \"portals\", for frontier-view --visibility portals).",
       "frontier-build"};
   frontier::BuildOptions options;
   std::string memory = "1G", codec = "draco";
@@ -52,6 +54,12 @@ int main(int argc, char** argv) {
   bool no_walkable = false;
   auto* no_walk = app.add_flag("--no-walkable", no_walkable, "no collision grid, whatever a sidecar says");
   no_walk->excludes(app.get_option("--walkable"));
+  bool no_portals = false;
+  app.add_option("--tessellate", options.tessellate,
+                 "turn spheres, cones and boxes into triangle meshes with N segments around a circle "
+                 "(for the rasterizing visibility classes, which draw triangles only)")
+      ->check(CLI::Range(3, 1024));
+  app.add_flag("--no-portals", no_portals, "do not store the cells and portals of a MODEL.json sidecar");
   app.add_option("--sdf-voxel", options.sdf_voxel, "voxel size of the collision grid (default: from the model size)");
   app.add_option("--walk-radius", options.walk_radius,
                  "walker clearance the collision grid must resolve (default 0.25, model units)");
@@ -68,6 +76,7 @@ int main(int argc, char** argv) {
   if (!no_walkable) {
     for (const std::string& in : options.inputs) options.walkable = options.walkable || sidecar_says_walkable(in);
   }
+  options.portals = !no_portals;
 
   auto report = frontier::build_store(options);
   if (!report) {
@@ -90,6 +99,11 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "  collision grid: %.1f MB in the store, %.1f MB in memory%s\n",
                    static_cast<double>(r.sdf_bytes) / 1e6, static_cast<double>(r.sdf_memory) / 1e6,
                    r.sdf_memory > options.memory ? " (more than --memory: the grid is not paged yet)" : "");
+    }
+    if (!r.portals_sidecar.empty()) {
+      std::fprintf(stderr, "  cells and portals: %llu rooms, %llu portals from %s\n",
+                   static_cast<unsigned long long>(r.portal_rooms), static_cast<unsigned long long>(r.portals),
+                   r.portals_sidecar.c_str());
     }
   }
   return 0;

@@ -138,7 +138,30 @@ void PagedWorld::decode(uint32_t cell, Decoded& out) const {
   out.bytes = charge_of(out.scene, out.tree);
 }
 
-bool PagedWorld::sync(std::chrono::steady_clock::time_point deadline) {
+bool PagedWorld::sync(std::chrono::steady_clock::time_point deadline) { return sync_impl(deadline, false); }
+
+bool PagedWorld::sync_evicting() { return sync_impl(std::chrono::steady_clock::time_point::max(), true); }
+
+bool PagedWorld::evict_for(uint64_t bytes, const std::vector<uint32_t>& keep) {
+  if (bytes > decoded_budget_) return false;
+  if (decoded_bytes_ + garbage_bytes_ + bytes <= decoded_budget_) return true;
+  std::vector<uint32_t> order;
+  for (const Graft& g : live_) {
+    if (std::find(keep.begin(), keep.end(), g.cell) == keep.end()) order.push_back(g.cell);
+  }
+  std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
+    return last_touched_[a] != last_touched_[b] ? last_touched_[a] < last_touched_[b] : a < b;
+  });
+  for (const uint32_t c : order) {
+    if (decoded_bytes_ + bytes <= decoded_budget_) break;
+    unlink(c);
+  }
+  if (decoded_bytes_ + bytes > decoded_budget_) return false;
+  if (decoded_bytes_ + garbage_bytes_ + bytes > decoded_budget_) compact();
+  return true;
+}
+
+bool PagedWorld::sync_impl(std::chrono::steady_clock::time_point deadline, bool evict) {
   const auto start = std::chrono::steady_clock::now();
   std::vector<uint32_t> ready;
   {
@@ -157,10 +180,11 @@ bool PagedWorld::sync(std::chrono::steady_clock::time_point deadline) {
   }
   if (ready.empty()) return false;
   bool changed = false;
-  std::vector<uint32_t> later;
+  std::vector<uint32_t> later, grafted;
   const size_t batch = std::max<size_t>(4, 2 * static_cast<size_t>(tbb::info::default_concurrency()));
+  bool full = false;
   for (size_t b = 0; b < ready.size(); b += batch) {
-    if (std::chrono::steady_clock::now() >= deadline) {
+    if (full || std::chrono::steady_clock::now() >= deadline) {
       later.insert(later.end(), ready.begin() + static_cast<std::ptrdiff_t>(b), ready.end());
       break;
     }
@@ -176,9 +200,16 @@ bool PagedWorld::sync(std::chrono::steady_clock::time_point deadline) {
         missing_[d.cell] = 0;
         ++counters_.page_errors;
         changed = true;
-      } else if (decoded_bytes_ + garbage_bytes_ + d.bytes <= decoded_budget_) {
+      } else if (decoded_bytes_ + garbage_bytes_ + d.bytes <= decoded_budget_ ||
+                 (evict && evict_for(d.bytes, grafted))) {
         graft(d);
+        grafted.push_back(d.cell);
         changed = true;
+      } else if (evict && d.bytes <= decoded_budget_) {
+        // Full of cells grafted by this call, which the caller has not drawn yet: the rest
+        // comes in with the next call.
+        later.push_back(d.cell);
+        full = true;
       } else {
         // No room while this frame holds everything else: not again in this frame (the flag
         // stays set), wanted again from the next one.
@@ -315,6 +346,14 @@ uint64_t PagedWorld::end_frame(const CellMarks& marks) {
   return touched;
 }
 
+std::vector<uint32_t> PagedWorld::touched_this_frame() const {
+  std::vector<uint32_t> out;
+  for (uint32_t c = 0; c < top_cells_; ++c) {
+    if (last_touched_[c] == frame_) out.push_back(c);
+  }
+  return out;
+}
+
 void PagedWorld::forget_dropped() {
   for (const uint32_t c : dropped_) wanted_flag_[c].store(0, std::memory_order_release);
   dropped_.clear();
@@ -434,6 +473,7 @@ void PagedWorld::compact() {
   scene_.quadrics.resize(kind_at[4]);
   if (!scene_.triangle_normals.empty()) scene_.triangle_normals.resize(kind_at[0]);
   garbage_bytes_ = 0;
+  ++generation_;
 }
 
 size_t PagedWorld::resident_cells() const { return live_.size(); }

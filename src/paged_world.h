@@ -83,6 +83,17 @@ class PagedWorld final : public CellGate {
   // decoded and refined in parallel, then grafted, evicting as described above. Stops starting
   // new decodes at `deadline`. Returns true when the tree changed (the caster must be told).
   bool sync(std::chrono::steady_clock::time_point deadline = std::chrono::steady_clock::time_point::max());
+  // sync() for the culling classes (src/visibility.h), which hold no world cell between calls:
+  // when a decoded cell does not fit, cells grafted before this call — least recently touched
+  // first, this frame's included — are unlinked (and the arrays compacted) to make room. Only a
+  // cell larger than the whole decoded share is dropped. Compaction renumbers world cells,
+  // primitives and subtree nodes (top nodes keep theirs): generation() counts it.
+  bool sync_evicting();
+  uint64_t generation() const { return generation_; }
+  // Records that the current frame used store cell `c` (LRU), for renderers without CellMarks.
+  void touch(uint32_t store_cell) { last_touched_[store_cell] = frame_; }
+  // Store cells touched (or paged in) since the last begin_frame().
+  std::vector<uint32_t> touched_this_frame() const;
   // Blocks until at least one wanted page is readable or failed (or nothing is pending), or
   // until `deadline`. Returns the milliseconds waited (stall time).
   double wait_for_pages(std::chrono::steady_clock::time_point deadline);
@@ -128,7 +139,9 @@ class PagedWorld final : public CellGate {
   struct Graft;
   struct Decoded;
   void decode(uint32_t cell, Decoded& out) const;
-  bool make_room(uint64_t bytes);
+  bool sync_impl(std::chrono::steady_clock::time_point deadline, bool evict);
+  // Unlinks live cells other than `keep` (LRU first) and compacts until `bytes` more fit.
+  bool evict_for(uint64_t bytes, const std::vector<uint32_t>& keep);
   void graft(Decoded& d);
   void unlink(uint32_t cell);
   void note_touched(const CellMarks& marks);
@@ -157,6 +170,7 @@ class PagedWorld final : public CellGate {
   std::vector<uint8_t> failed_;          // store cell
   std::vector<uint64_t> last_touched_;   // store cell -> frame
   uint64_t frame_ = 1;
+  uint64_t generation_ = 0;              // compactions so far
 
   std::unique_ptr<std::atomic<uint8_t>[]> wanted_flag_;  // store cell: in wanted_ already
   mutable std::mutex wanted_mutex_;

@@ -130,6 +130,7 @@ Rasterizer::Rasterizer(const View& view, const RasterOptions& options)
   tiles_x_ = (view.width + options_.tile_size - 1) / options_.tile_size;
   tiles_y_ = (view.height + options_.tile_size - 1) / options_.tile_size;
   bins_.resize(static_cast<size_t>(tiles_x_) * static_cast<size_t>(tiles_y_));
+  tile_generation_.resize(bins_.size());
   setups_ = std::make_unique_for_overwrite<Setup[]>(kBatchTriangles);
   clear();
 }
@@ -142,6 +143,8 @@ void Rasterizer::clear() {
   inverse_depth_.assign(view_.pixels(), 0.0);
   ids_.assign(view_.pixels(), kNoPrim);
   colors_.clear();
+  ++generation_;
+  std::fill(tile_generation_.begin(), tile_generation_.end(), generation_);
 }
 
 void Rasterizer::submit(const Triangle& triangle, uint32_t id) {
@@ -275,6 +278,7 @@ void Rasterizer::raster_tile(int tile, const Setup* setups, RasterCounters& coun
   const size_t width = static_cast<size_t>(view_.width);
   double* const depth = inverse_depth_.data();
   uint32_t* const ids = ids_.data();
+  bool changed = false;
   for (uint32_t index : bins_[static_cast<size_t>(tile)]) {
     const Setup& s = setups[index];
     const int x0 = std::max(s.x0, tx0), x1 = std::min(s.x1, tx1);
@@ -287,6 +291,7 @@ void Rasterizer::raster_tile(int tile, const Setup* setups, RasterCounters& coun
         depth[i] = inv;
         ids[i] = s.id;
         ++counters.depth_passes;
+        changed = true;
       }
     };
     for (int y = y0; y <= y1; ++y) {
@@ -326,11 +331,15 @@ void Rasterizer::raster_tile(int tile, const Setup* setups, RasterCounters& coun
       }
     }
   }
+  // Every depth pass changes its pixel (it raises (1/w, -id) strictly), so this stamps exactly
+  // the tiles whose content changed. One task per tile: no other thread writes this entry.
+  if (changed) tile_generation_[static_cast<size_t>(tile)] = generation_;
 }
 
 void Rasterizer::flush() {
   if (pending_.empty()) return;
   const size_t n = pending_.size();
+  ++generation_;
   tbb::enumerable_thread_specific<RasterCounters> local;
 
   auto start = std::chrono::steady_clock::now();
@@ -365,6 +374,15 @@ void Rasterizer::flush() {
   for (const RasterCounters& c : local) counters_ += c;
   pending_.clear();
   pending_ids_.clear();
+}
+
+std::vector<int> Rasterizer::tiles_changed_since(uint64_t generation) {
+  flush();
+  std::vector<int> tiles;
+  for (size_t tile = 0; tile < tile_generation_.size(); ++tile) {
+    if (tile_generation_[tile] > generation) tiles.push_back(static_cast<int>(tile));
+  }
+  return tiles;
 }
 
 uint32_t Rasterizer::id(int x, int y) {

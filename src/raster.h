@@ -35,6 +35,7 @@
 #include <glm/mat3x3.hpp>
 #include <tbb/task_arena.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -70,6 +71,15 @@ struct RasterCounters {
   RasterCounters& operator+=(const RasterCounters& o);
 };
 
+// World space -> the rasterizer's clip space: (x w, y w, w), w the distance along the view axis
+// (so 1/w is what the depth test compares), pixel centres at integer x = X / w, y = Y / w.
+struct ClipTransform {
+  Vec3 eye{0.0};
+  glm::dmat3 to_clip{1.0};  // inverse of the View's pixel-direction map (step_x, step_y, base)
+
+  Vec3 operator()(const Vec3& world) const { return to_clip * (world - eye); }
+};
+
 class Rasterizer {
  public:
   static constexpr int kSubpixelBits = 32;            // vertex snapping: 2^-32 pixel
@@ -93,6 +103,25 @@ class Rasterizer {
   void flush();
 
   const RasterCounters& counters() const { return counters_; }
+
+  // The projection the depth test uses (see ClipTransform). Consumers of inverse_depth() (a
+  // depth pyramid) project with it to compare their own geometry with the buffer.
+  ClipTransform clip_transform() const { return {view_.eye, to_clip_}; }
+  // The near plane triangles are clipped at: View::near, else RasterOptions::near_floor; 0 when
+  // neither is set (then chosen per triangle, 1e-9 of its largest vertex w).
+  double near_plane() const { return view_.near > 0.0 ? view_.near : std::max(options_.near_floor, 0.0); }
+
+  // Change tracking for incremental consumers. Tiles are options().tile_size pixels square,
+  // numbered row by row (tile (tx, ty) is index ty * tiles_x() + tx, covering pixels from
+  // (tx, ty) * tile_size, clipped to the image). generation() advances with every flush() that
+  // had triangles and every clear(); a tile is stamped with the generation that last changed a
+  // pixel of it (an id or a depth; clear() stamps them all).
+  int tiles_x() const { return tiles_x_; }
+  int tiles_y() const { return tiles_y_; }
+  uint64_t generation() const { return generation_; }
+  // Flushes, then returns, in increasing order, the tiles whose pixels changed after
+  // `generation` (pass the generation() read after the previous call to see each change once).
+  std::vector<int> tiles_changed_since(uint64_t generation);
 
   // Framebuffer (each flushes first). Row-major, top row first, index y * width + x.
   // id: the winning triangle's id, kNoPrim for background.
@@ -138,6 +167,8 @@ class Rasterizer {
   std::vector<uint32_t> ids_;
   std::vector<Rgb> colors_;
   RasterCounters counters_;
+  uint64_t generation_ = 0;
+  std::vector<uint64_t> tile_generation_;  // per tile: the generation that last changed it
 };
 
 // Submits every triangle of `scene` with its primitive index as id (so ids()[i] indexes

@@ -32,7 +32,18 @@ Rgb Shader::shade(uint32_t prim, const Ray& ray, double t, bool with_shadows, Co
   static const Material kDefault;
   const Material& m = ref.material < scene_.materials.size() ? scene_.materials[ref.material] : kDefault;
   const Vec3 p = ray.at(t);
-  const Vec3 n = scene_.shading_normal(prim, p, ray);
+  return lit(m, p, scene_.shading_normal(prim, p, ray), ray, t, with_shadows, counters);
+}
+
+Rgb Shader::shade_surface(uint32_t material, const Vec3& normal, const Ray& ray, double t, Counters& counters) const {
+  static const Material kDefault;
+  const Material& m = material < scene_.materials.size() ? scene_.materials[material] : kDefault;
+  const Vec3 n = glm::dot(normal, ray.dir) > 0.0 ? -normal : normal;
+  return lit(m, ray.at(t), n, ray, t, false, counters);
+}
+
+Rgb Shader::lit(const Material& m, const Vec3& p, const Vec3& n, const Ray& ray, double t, bool with_shadows,
+                Counters& counters) const {
   const Vec3 v = -ray.dir;
   Vec3 color = 0.1 * m.color;  // a little ambient so unlit faces stay readable
   auto add_light = [&](const Vec3& to_light, const Vec3& light_color, double scale) {

@@ -27,11 +27,17 @@ class Shader {
   // Colour of a primary-ray sample. `with_shadows` selects the deferred shadow effect (it is
   // ignored when the scene declares no shadow-casting light).
   Rgb shade(uint32_t prim, const Ray& ray, double t, bool with_shadows, Counters& counters) const;
+  // The same shading for a surface point given by its material and unit normal (facing the
+  // ray or not: flipped as shade() does), without shadows: what renderers that keep no scene
+  // index per pixel (the rasterizing culling classes) use.
+  Rgb shade_surface(uint32_t material, const Vec3& normal, const Ray& ray, double t, Counters& counters) const;
   Rgb background() const;
 
  private:
   const Scene& scene_;
   const KdTree& tree_;
+  Rgb lit(const Material& m, const Vec3& p, const Vec3& n, const Ray& ray, double t, bool with_shadows,
+          Counters& counters) const;
   Effects effects_;
   double light_scale_ = 1.0;
   double epsilon_ = 1e-9;

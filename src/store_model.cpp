@@ -2,6 +2,7 @@
 #include "src/store_model.h"
 
 #include "store/page_file.h"
+#include "src/byte_io.h"
 #include "store/page_format.h"
 
 #include <fmt/format.h>
@@ -23,19 +24,6 @@ constexpr size_t kNodeBytes = 16;   // f64 split, u32 axis_or_leaf, u32 child
 constexpr size_t kCellBytes = 112;  // 12 f64 bounds/content, u32 references, u32 0, u64 page
 constexpr int kModelVersion = 1;
 
-void put_f64(std::vector<uint8_t>& out, double v) { put_u64(out, std::bit_cast<uint64_t>(v)); }
-double get_f64(const uint8_t* p) { return std::bit_cast<double>(get_u64(p)); }
-void put_vec(std::vector<uint8_t>& out, const Vec3& v) {
-  for (int a = 0; a < 3; ++a) put_f64(out, v[a]);
-}
-Vec3 get_vec(const uint8_t* p) { return {get_f64(p), get_f64(p + 8), get_f64(p + 16)}; }
-// lo and hi as stored (the Aabb constructor would order them, turning an empty box into a full one).
-Aabb get_box(const uint8_t* p) {
-  Aabb b;
-  b.lo = get_vec(p);
-  b.hi = get_vec(p + 24);
-  return b;
-}
 
 nlohmann::json vec_json(const Vec3& v) { return nlohmann::json::array({v.x, v.y, v.z}); }
 Vec3 json_vec(const nlohmann::json& j) {
@@ -300,6 +288,18 @@ Status StoreModel::parse() {
   if (visited != nodes_.size()) return Status::corruption(fmt::format("{}: tree has unreachable nodes", name));
   for (size_t i = 0; i < cells_.size(); ++i) {
     if (!cell_seen[i]) return Status::corruption(fmt::format("{}: cell {} is not in the tree", name, i));
+  }
+
+  if (reader_->section(kPortalsSection)) {
+    const std::string where = fmt::format("{}: {} section", name, kPortalsSection);
+    auto portal_bytes = reader_->read_section(kPortalsSection);
+    if (!portal_bytes && portal_bytes.status().code() == Status::Code::Corruption) {
+      return Status::corruption(fmt::format("{}: {}", where, portal_bytes.status().message()));
+    }
+    if (!portal_bytes) return portal_bytes.status();
+    auto graph = PortalGraph::deserialize(*portal_bytes, where);
+    if (!graph) return graph.status();
+    portals_.emplace(std::move(*graph));
   }
   return Status::ok();
 }

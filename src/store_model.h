@@ -1,7 +1,8 @@
 // StoreModel: a model as the store holds it — the sections `model` (JSON: lattice, codec,
 // counts, materials, lights, camera), `tree` (the top k-d tree's nodes) and `cells` (one record
-// per top cell: bounds, content bounds, reference count, page) — and the decoding of a cell's
-// page into primitives. Byte layouts are in store/FORMAT.md ("Model sections", "Cell pages").
+// per top cell: bounds, content bounds, reference count, page), the optional `portals` (the
+// building's cells-and-portals graph, src/portals.h) — and the decoding of a cell's page into
+// primitives. Byte layouts are in store/FORMAT.md ("Model sections", "Cell pages").
 //
 // The top tree is resident; cell pages are decoded on demand (read_cell) or all at once
 // (load_all, for models that fit in memory: the round-trip tests and rendering a small store
@@ -11,6 +12,7 @@
 
 #include "src/cell_codec.h"
 #include "src/kdtree.h"
+#include "src/portals.h"
 #include "src/scene.h"
 #include "src/status.h"
 #include "store/store_file.h"
@@ -67,7 +69,9 @@ std::vector<uint8_t> encode_cells(const std::vector<StoreCell>& cells);
 class StoreModel {
  public:
   // Opens a store and checks the model, tree and cells sections (structure only: every node
-  // and cell consistent, regions nested, pages in range). Pages are not read.
+  // and cell consistent, regions nested, pages in range) and loads the portals section when
+  // there is one (Corruption naming the store and the section when it is damaged). Pages are
+  // not read.
   static Result<std::unique_ptr<StoreModel>> open(const std::string& path);
   static Result<std::unique_ptr<StoreModel>> open(std::unique_ptr<store::StoreReader> reader);
 
@@ -76,6 +80,9 @@ class StoreModel {
   const std::vector<StoreCell>& cells() const { return cells_; }
   uint32_t depth() const { return depth_; }
   const store::StoreReader& reader() const { return *reader_; }
+  // The cells-and-portals graph of the `portals` section; nullptr when the store has none.
+  // Owned by the model and valid as long as it is.
+  const PortalGraph* portals() const { return portals_ ? &*portals_ : nullptr; }
 
   // Decodes one cell's page (an empty scene for a cell without a page). Corruption naming the
   // cell and page when the page's checksum or contents are bad. Thread-safe.
@@ -102,6 +109,7 @@ class StoreModel {
   std::vector<KdTree::Node> nodes_;
   std::vector<StoreCell> cells_;
   uint32_t depth_ = 0;
+  std::optional<PortalGraph> portals_;
 };
 
 }  // namespace frontier

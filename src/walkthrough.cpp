@@ -54,6 +54,12 @@ nlohmann::json FrameReport::to_json() const {
                       {"reconstruct_ms", reconstruct_ms},
                       {"shading_ops", shading_ops},
                       {"shadow_rays", shadow_rays}};
+  j["visibility"] = visibility_name(visibility);
+  j["nodes_touched"] = nodes_touched;
+  j["primitives_touched"] = primitives_touched;
+  j["pixels_rasterized"] = pixels_rasterized;
+  j["culling_rate"] = culling_rate;
+  if (cull) j["cull"] = cull->to_json();
   if (oracle_cells) j["oracle_cells"] = *oracle_cells;
   if (oracle_ratio) j["touched_oracle_ratio"] = *oracle_ratio;
   return j;
@@ -77,6 +83,18 @@ Result<std::unique_ptr<Walkthrough>> Walkthrough::open(const std::string& store_
   w->caster_->set_leaf_pixels(options.leaf_pixels);
   w->caster_->set_gate(w->world_.get());
   if (options.oracle) w->oracle_ = std::make_unique<StoreOracle>(*w->model_);
+  if (options.visibility != Visibility::kFrustumAdvance) {
+    if (options.visibility == Visibility::kPortals && w->model_->portals() == nullptr) {
+      return Status::invalid_argument(store_path +
+                                      ": --visibility portals needs a store with cells and portals (built from a "
+                                      "model with a frontier-gen building sidecar)");
+    }
+    CullOptions co;
+    co.visibility = options.visibility;
+    co.cull_back_faces = options.cull_back_faces;
+    co.threads = options.threads;
+    w->culler_ = std::make_unique<CullingRenderer>(co, w->model_->portals());
+  }
   return w;
 }
 
@@ -89,7 +107,89 @@ void Walkthrough::start_image(bool shadows) {
   image_samples_ = 0;
 }
 
+namespace {
+
+// The paged world as the culling classes see it: missing cells are paged in on request, and
+// cells a frame already drew may be evicted while it goes on.
+class PagedCullSource final : public CullSource {
+ public:
+  explicit PagedCullSource(PagedWorld& world) : world_(world) {}
+  const KdTree& tree() const override { return world_.tree(); }
+  const Scene& scene() const override { return world_.scene(); }
+  bool missing(int32_t cell) const override { return world_.missing(cell); }
+  void want(int32_t cell) override { world_.want(cell); }
+  bool fetch() override {
+    if (world_.pending() == 0) return false;
+    stall_ms += world_.wait_for_pages(Clock::time_point::max());
+    world_.sync_evicting();
+    return true;
+  }
+  uint64_t generation() const override { return world_.generation(); }
+  void used(int32_t cell) override { world_.touch(world_.store_cell(cell)); }
+
+  double stall_ms = 0.0;
+
+ private:
+  PagedWorld& world_;
+};
+
+}  // namespace
+
+// One complete frame of a rasterizing visibility class.
+FrameReport Walkthrough::culling_frame(const Camera& camera) {
+  const auto start = Clock::now();
+  FrameReport r;
+  r.frame = frames_++;
+  r.eye = camera.eye;
+  r.visibility = options_.visibility;
+  view_ = View(camera, options_.width, options_.height);
+  last_camera_ = camera;
+  world_->begin_frame(marks_);
+  PagedCullSource source(*world_);
+  const CullCounters cc = culler_->render(view_, source);
+  cull_image_.clear();
+  reconstructed_ = false;
+  const auto finish_start = Clock::now();
+  if (options_.reconstruct_each_frame) {
+    image();
+    r.reconstruct_ms = ms_since(finish_start);
+  }
+  const PagingCounters paging = world_->take_counters();
+  const store::PageCacheStats cache = world_->cache_stats();
+  r.cells_touched = world_->end_frame(CellMarks());
+  r.cells_paged_in = paging.cells_paged_in;
+  r.bytes_read = cache.bytes_read - last_bytes_read_;
+  last_bytes_read_ = cache.bytes_read;
+  r.resident_bytes = world_->resident_bytes();
+  r.pinned_bytes = world_->pinned_bytes();
+  r.cache_budget = world_->budget_bytes();
+  r.primitives_tested = cc.primitives_touched;
+  r.pixels = view_.pixels();
+  r.samples = r.image_samples = r.pixels;
+  r.complete = cc.cells_unavailable == 0;
+  r.cells_evicted = paging.cells_evicted;
+  r.cells_dropped = paging.cells_dropped;
+  r.page_errors = cache.errors;
+  r.resident_cells = world_->resident_cells();
+  r.decode_ms = paging.decode_ms;
+  r.stall_ms = source.stall_ms;
+  r.nodes_touched = cc.nodes_touched;
+  r.primitives_touched = cc.primitives_touched;
+  r.pixels_rasterized = cc.pixels_rasterized;
+  const uint64_t refs = model_->info().references;
+  r.culling_rate = refs > 0 ? 1.0 - std::min(1.0, double(cc.primitives_touched) / double(refs)) : 0.0;
+  r.cull = cc;
+  r.frame_ms = ms_since(start);
+  if (oracle_) {
+    oracle_frame_ = oracle_->frame(view_, options_.threads);
+    r.oracle_cells = oracle_frame_->cells.size();
+    if (!oracle_frame_->cells.empty()) r.oracle_ratio = double(r.cells_touched) / double(oracle_frame_->cells.size());
+  }
+  return r;
+}
+
 FrameReport Walkthrough::frame(const Camera& camera) {
+  if (culler_) return culling_frame(camera);
   const auto start = Clock::now();
   const FrameBudget& budget = options_.budget;
   const bool unbounded = budget.ms <= 0.0 && budget.samples == 0;
@@ -185,6 +285,10 @@ FrameReport Walkthrough::frame(const Camera& camera) {
   r.pinned_bytes = world_->pinned_bytes() + world_->touched_bytes();
   r.cache_budget = world_->budget_bytes();
   r.primitives_tested = counters.primitives_tested;
+  r.nodes_touched = counters.cell_visits;
+  r.primitives_touched = counters.primitives_tested;
+  const uint64_t refs = model_->info().references;
+  r.culling_rate = refs > 0 ? 1.0 - std::min(1.0, double(counters.primitives_tested) / double(refs)) : 0.0;
   r.ray_primitive_tests = counters.ray_primitive_tests;
   r.rays = counters.rays;
   r.samples = counters.samples;
@@ -214,6 +318,13 @@ FrameReport Walkthrough::frame(const Camera& camera) {
 }
 
 const std::vector<Rgb>& Walkthrough::image() {
+  if (culler_) {
+    if (cull_image_.empty()) {
+      Counters counters;
+      cull_image_ = culler_->shade(*shader_, counters);
+    }
+    return cull_image_;
+  }
   if (!reconstructed_) {
     reconstruct(buffer_, shader_->background());
     reconstructed_ = true;
@@ -222,6 +333,7 @@ const std::vector<Rgb>& Walkthrough::image() {
 }
 
 std::vector<uint32_t> Walkthrough::ids() const {
+  if (culler_) return culler_->ids();
   std::vector<uint32_t> out(buffer_.size(), kNoPrim);
   const Scene& scene = world_->scene();
   for (size_t i = 0; i < out.size(); ++i) {

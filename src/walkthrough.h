@@ -29,6 +29,7 @@
 #include "src/store_model.h"
 #include "src/store_oracle.h"
 #include "src/view.h"
+#include "src/visibility.h"
 
 #include <nlohmann/json_fwd.hpp>
 
@@ -60,6 +61,10 @@ struct WalkOptions {
   // window needs it). Off, image() reconstructs on demand: headless walks pay for it only for
   // the frames they write.
   bool reconstruct_each_frame = true;
+  // Which visibility class renders the frames (src/visibility.h). The rasterizing classes
+  // render every frame complete (paging synchronously) and ignore the budget.
+  Visibility visibility = Visibility::kFrustumAdvance;
+  bool cull_back_faces = false;  // rasterizing classes: drop back faces (closed solids only)
 };
 
 struct FrameReport {
@@ -96,6 +101,15 @@ struct FrameReport {
   double reconstruct_ms = 0.0;      // 0 when the frame did not reconstruct its image
   uint64_t shading_ops = 0;
   uint64_t shadow_rays = 0;
+  // Issue 7's comparison of visibility classes. Frustum advance: nodes_touched counts cell
+  // entries (with repetition: its navigation goes through ropes, not down from the root),
+  // primitives_touched its primitive incidences, nothing is rasterized.
+  Visibility visibility = Visibility::kFrustumAdvance;
+  uint64_t nodes_touched = 0;
+  uint64_t primitives_touched = 0;   // primitive references examined
+  uint64_t pixels_rasterized = 0;    // fragments depth-tested (rasterizing classes)
+  double culling_rate = 0.0;         // 1 - primitives_touched / the store's references
+  std::optional<CullCounters> cull;  // the rasterizing classes' own counters
   nlohmann::json to_json() const;
 };
 
@@ -117,20 +131,27 @@ class Walkthrough {
   const View& view() const { return view_; }
   // Per pixel: the source id of the first hit (kNoPrim: background or not sampled yet).
   std::vector<uint32_t> ids() const;
+  // Rasterizing classes: the ray parameter t per pixel (kInfinity: background); empty otherwise.
+  std::vector<double> depths() const { return culler_ ? culler_->depths() : std::vector<double>{}; }
   // Store cells touched by the current image.
-  std::vector<uint32_t> touched_cells() const { return world_->touched_store_cells(marks_); }
+  std::vector<uint32_t> touched_cells() const {
+    return culler_ ? world_->touched_this_frame() : world_->touched_store_cells(marks_);
+  }
   // The oracle's last frame (only with options.oracle).
   const OracleFrame* last_oracle() const { return oracle_frame_ ? &*oracle_frame_ : nullptr; }
 
  private:
   Walkthrough() = default;
   void start_image(bool shadows);
+  FrameReport culling_frame(const Camera& camera);
 
   WalkOptions options_;
   std::unique_ptr<StoreModel> model_;
   std::unique_ptr<PagedWorld> world_;
   std::unique_ptr<Shader> shader_;
   std::unique_ptr<FrustumCaster> caster_;
+  std::unique_ptr<CullingRenderer> culler_;  // rasterizing visibility classes
+  std::vector<Rgb> cull_image_;
   std::unique_ptr<StoreOracle> oracle_;
   std::optional<OracleFrame> oracle_frame_;
   SampleBuffer buffer_;

@@ -1,8 +1,9 @@
 // frontier-store: looks inside a store file.
 //   info FILE    what the store holds: primitives, cells, depth, bytes per triangle, codec,
-//                lattice, sections, a histogram of cell sizes
-//   verify FILE  every checksum, every structural invariant, every page decoded and checked
-//                against its cell; exit 1 naming the first bad part
+//                lattice, cells and portals, sections, a histogram of cell sizes
+//   verify FILE  every checksum, every structural invariant (the portals section included),
+//                every page decoded and checked against its cell; exit 1 naming the first bad
+//                part
 #include "src/progress.h"
 #include "src/store_model.h"
 #include "store/page_file.h"
@@ -68,6 +69,12 @@ int info(const std::string& path) {
   out += fmt::format("materials   {}, lights {}, camera {}\n", in.materials.size(), in.lights.size(),
                      in.camera ? "yes" : "no");
   out += fmt::format("walkable    {}\n", in.walkable ? fmt::format("yes (distance grid, voxel {:.4g})", in.sdf_voxel) : "no");
+  if (const frontier::PortalGraph* portals = model.portals()) {
+    out += fmt::format("portals     {} rooms, {} portals (walls {:.4g}, slabs {:.4g})\n", portals->room_count(),
+                       portals->portal_count(), portals->wall_thickness(), portals->slab_thickness());
+  } else {
+    out += "portals     none\n";
+  }
   out += "sections   ";
   for (const auto& s : reader.sections()) out += fmt::format(" {} {}B", s.name, s.handle.size);
   out += "\ncell sizes  (references per non-empty cell)\n";
@@ -114,9 +121,14 @@ int verify(const std::string& path, bool quiet) {
   }
   progress.finish();
   if (!quiet) {
-    std::printf("%s: ok: %zu pages checksummed, %llu decoded, %llu references in %zu cells, tree depth %u\n",
+    // StoreModel::open has parsed and checked the portals section, if any.
+    const std::string portals =
+        model.portals() != nullptr
+            ? fmt::format(", {} rooms and {} portals", model.portals()->room_count(), model.portals()->portal_count())
+            : "";
+    std::printf("%s: ok: %zu pages checksummed, %llu decoded, %llu references in %zu cells, tree depth %u%s\n",
                 path.c_str(), pages, static_cast<unsigned long long>(decoded_pages),
-                static_cast<unsigned long long>(references), model.cells().size(), model.depth());
+                static_cast<unsigned long long>(references), model.cells().size(), model.depth(), portals.c_str());
   }
   return 0;
 }
@@ -129,7 +141,7 @@ int main(int argc, char** argv) {
   std::string path;
   bool quiet = false;
   auto* info_cmd = app.add_subcommand(
-      "info", "primitives, cells, depth, bytes per triangle, codec, lattice, sections, cell size histogram");
+      "info", "primitives, cells, depth, bytes per triangle, codec, lattice, rooms and portals, sections, cell size histogram");
   info_cmd->add_option("file", path, "store file")->required();
   auto* verify_cmd = app.add_subcommand(
       "verify", "check every checksum and structural invariant and decode every page; exit 1 naming the first bad one");

@@ -9,6 +9,9 @@
 //       one complete frame of a store from its camera (paged, waiting for pages);
 //   frontier-view MODEL --headless [--method brute|raywalk|frustum] [--png F] [--ids F] [--stats F]
 //       a model file (NFF, PLY, OBJ, OFF) rendered in memory (or a store with --in-memory).
+//   Any of these with --visibility exhaustive|frustum-cull|occlusion-cull|portals renders with
+//   that visibility class (src/visibility.h) and the z-buffer rasterizer instead of frustum
+//   casting (frustum-advance, the default).
 //
 // Exit codes: 0 success, 1 bad input (the message names the file and line or page), 2 bad options.
 #include "src/camera_path.h"
@@ -86,7 +89,8 @@ double percentile(std::vector<double> v, double p) {
 
 struct Options {
   std::string scene_path, size_text, method_text = "frustum", png_path, ids_path, stats_path;
-  std::string cache_text = "512M", path_file, report_path, png_dir;
+  std::string cache_text = "512M", path_file, report_path, png_dir, visibility_text = "frustum-advance";
+  bool cull_back_faces = false;
   bool headless = false, no_shadows = false, in_memory = false, oracle = false, sync_paging = false, walk = false;
   int threads = 0, frames = 0, png_every = 0;
   uint32_t cell_prims = 8, min_cell_prims = 0;
@@ -95,6 +99,46 @@ struct Options {
   uint64_t samples = 0;
   int width = 0, height = 0;
 };
+
+// One frame of a model in memory with a rasterizing visibility class.
+int render_culling_in_memory(const Options& o, const Scene& scene, const KdTree& tree, const View& view,
+                             Visibility visibility) {
+  if (visibility == Visibility::kPortals) {
+    return bad_option("--visibility portals needs a store built from a model with cells and portals");
+  }
+  CullOptions co;
+  co.visibility = visibility;
+  co.cull_back_faces = o.cull_back_faces;
+  co.threads = o.threads;
+  CullingRenderer renderer(co);
+  MemoryCullSource source(scene, tree);
+  const CullCounters counters = renderer.render(view, source);
+  fmt::print(stderr, "{}: {} primitives, {} cells; {} {}x{}: {:.1f} ms, {} nodes, {} cells, {} primitives touched, "
+                     "{} rasterized, {} fragments\n",
+             o.scene_path, scene.size(), tree.cells().size(), visibility_name(visibility), view.width, view.height,
+             counters.ms, counters.nodes_touched, counters.cells_touched, counters.primitives_touched,
+             counters.primitives_rasterized, counters.pixels_rasterized);
+  if (!o.png_path.empty()) {
+    const Shader shader(scene, tree);
+    Counters shading;
+    if (Status s = write_png(o.png_path, view.width, view.height, renderer.shade(shader, shading)); !s) return fail(s);
+  }
+  if (!o.ids_path.empty()) {
+    if (Status s = write_ids(o.ids_path, renderer.ids()); !s) return fail(s);
+  }
+  if (!o.stats_path.empty()) {
+    nlohmann::json j = counters.to_json();
+    j["visibility"] = visibility_name(visibility);
+    j["width"] = view.width;
+    j["height"] = view.height;
+    j["primitives"] = scene.size();
+    j["cells"] = tree.cells().size();
+    std::ofstream out(o.stats_path);
+    out << j.dump(2) << "\n";
+    if (!out) return fail(Status::io_error(o.stats_path + ": cannot write"));
+  }
+  return 0;
+}
 
 // A model file, or a store decoded whole, rendered in memory: one frame.
 int render_in_memory(const Options& o, bool store) {
@@ -130,6 +174,8 @@ int render_in_memory(const Options& o, bool store) {
   options.budget.ms = o.frame_ms;
   options.budget.samples = o.samples;
   options.leaf_pixels = o.leaf_pixels;
+  const Visibility visibility = *parse_visibility(o.visibility_text);
+  if (visibility != Visibility::kFrustumAdvance) return render_culling_in_memory(o, scene, tree, view, visibility);
   SampleBuffer buffer;
   const Counters counters = render_frame(scene, tree, view, options, buffer);
   fmt::print(stderr, "{}: {} primitives ({} input, {} degenerate dropped), {} cells, depth {}; "
@@ -359,6 +405,13 @@ int main(int argc, char** argv) {
   app.add_option("--leaf-pixels", o.leaf_pixels, "frusta up to N×N pixels walk their pixels individually (paper: 2)")
       ->check(CLI::Range(2, 4096));
   app.add_flag("--no-shadows", o.no_shadows, "skip the deferred shadow effect");
+  app.add_option("--visibility", o.visibility_text,
+                 "visibility class: frustum-advance (frustum casting, default) | exhaustive | frustum-cull | "
+                 "occlusion-cull | portals (the last four rasterize complete frames; portals needs a store with "
+                 "cells and portals)")
+      ->check(CLI::IsMember({"frustum-advance", "exhaustive", "frustum-cull", "occlusion-cull", "portals"}));
+  app.add_flag("--cull-back-faces", o.cull_back_faces,
+               "rasterizing classes: drop triangles facing away from the eye (exact for closed solids seen from outside)");
   CLI11_PARSE(app, argc, argv);
 
   if (!o.size_text.empty() && !parse_size(o.size_text, o.width, o.height)) {
@@ -388,6 +441,8 @@ int main(int argc, char** argv) {
   if (app.count("--cell-prims") > 0) wo.cell_prims = o.cell_prims;
   wo.leaf_pixels = o.leaf_pixels;
   wo.reconstruct_each_frame = !o.headless;  // headless: only for the frames written as PNG
+  wo.visibility = *parse_visibility(o.visibility_text);
+  wo.cull_back_faces = o.cull_back_faces;
   auto walk = Walkthrough::open(o.scene_path, wo);
   if (!walk) return fail(walk.status());
   const StoreModelInfo& info = (*walk)->model().info();

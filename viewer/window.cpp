@@ -466,7 +466,7 @@ void WindowSession::show_window_for(int image_w, int image_h) {
 }
 
 void WindowSession::upload_image() {
-  const int w = walk_.buffer().width(), h = walk_.buffer().height();
+  const int w = walk_.view().width, h = walk_.view().height;
   const std::vector<Rgb>& image = walk_.image();
   if (w <= 0 || h <= 0 || image.size() != size_t(w) * size_t(h)) return;
   glBindTexture(GL_TEXTURE_2D, texture_);

@@ -4,9 +4,11 @@
     python3 tests/bench/report.py OUT_DIR
 
 Reads raw/machine.json, raw/commands.txt, raw/embree.jsonl, raw/build.md, raw/accuracy.jsonl,
-raw/stability.json, raw/walk_pegged.jsonl and raw/walk_sync.jsonl; draws the plots with gnuplot.
+raw/stability.json, raw/walk_pegged.jsonl, raw/walk_sync.jsonl, raw/visibility.csv and
+raw/visibility.md; draws the plots with gnuplot.
 Every number in the report comes from those files.
 """
+import csv
 import json
 import os
 import statistics
@@ -388,6 +390,58 @@ def section_walk():
                                                 f"{ps.get('cache_budget', 0) / 1048576:.0f} MiB"))
 
 
+VISIBILITY_CLASSES = ["frustum-advance", "portals", "occlusion-cull", "frustum-cull", "exhaustive"]
+
+
+def section_visibility():
+    out.append("## 6. Visibility classes side by side (the frustum-casting paper's Fig. 1, measured)\n")
+    path = raw_path("visibility.csv")
+    if not os.path.exists(path):
+        out.append("No measurements (raw/visibility.csv missing).\n")
+        return
+    with open(path) as f:
+        rows = list(csv.DictReader(f))
+    out.append("`bench_visibility` runs every class along the same camera path through the same store with the "
+               "same cache budget, each frame complete: frustum advance is frontier's frustum casting "
+               "(`--sync-paging`), the others rasterize with the z-buffer rasterizer after their culling — "
+               "`exhaustive` (every cell, every primitive), `frustum-cull` (hierarchical view-frustum culling of "
+               "the k-d tree), `occlusion-cull` (front to back with a CPU z-pyramid), `portals` (cells and "
+               "portals from the building's sidecar). *Cells touched* are store cells whose primitives the class "
+               "examined; the *oracle* is the set exact per-pixel rays pass before their first hit; the "
+               "*working set* is the compressed pages of the cells touched (what the frame had to bring into "
+               "memory, whatever the cache kept).\n")
+    out.append(read_text("visibility.md").strip() + "\n")
+    for label in sorted({r["label"] for r in rows}, key=lambda l: ["building", "terrain", "shells"].index(l)
+                        if l in ["building", "terrain", "shells"] else 9):
+        mine = [r for r in rows if r["label"] == label]
+        classes = [c for c in VISIBILITY_CLASSES if any(r["class"] == c for r in mine)]
+        plots = []
+        oracle = [(int(r["frame"]), int(r["oracle_cells"])) for r in mine if r["class"] == "frustum-advance"]
+        files = {}
+        for c in classes:
+            files[c] = data_file(f"visibility_{label}_{c}.dat",
+                                 [(int(r["frame"]), int(r["cells_touched"]), int(r["primitives_touched"]),
+                                   int(r["working_set_bytes"]) / 1048576.0, float(r["frame_ms"]))
+                                  for r in mine if r["class"] == c])
+        op = data_file(f"visibility_{label}_oracle.dat", oracle)
+        for col, what, unit, log in ((2, "cells touched", "cells", True), (3, "primitives touched", "references", True),
+                                     (4, "working set", "MiB", True), (5, "frame time", "ms", True)):
+            series = ", ".join(f"'{files[c]}' using 1:{col} with lines lw 2 title '{c}'" for c in classes)
+            if col == 2:
+                series += f", '{op}' using 1:2 with lines lw 1 dt 2 lc rgb 'black' title 'oracle'"
+            plots.append(gnuplot(f"set title '{label}: {what} per frame'\nset xlabel 'frame'\nset ylabel '{unit}'\n"
+                                 + ("set logscale y\n" if log else "") + f"plot {series}\n",
+                                 f"visibility_{label}_{col}.png"))
+        out.append(f"### {label}: per frame\n")
+        out.append("\n".join(plots) + "\n")
+    # Headline: mean cells touched / oracle per class on the building.
+    building = [r for r in rows if r["label"] == "building" and int(r["oracle_cells"]) > 0]
+    for c in VISIBILITY_CLASSES:
+        q = [int(r["cells_touched"]) / int(r["oracle_cells"]) for r in building if r["class"] == c]
+        if q:
+            headline.append((f"building walk, {c}: cells touched / oracle (mean)", f"{statistics.mean(q):.2f}"))
+
+
 def section_commands():
     out.append("## Commands\n")
     out.append("The whole report: `tests/bench/report.sh OUT_DIR` (add `--quick` for small models). It ran:\n")
@@ -400,6 +454,7 @@ section_build()
 section_accuracy()
 section_stability()
 section_walk()
+section_visibility()
 section_commands()
 text = "\n".join(out)
 head = "| headline | measured |\n|---|---|\n" + "\n".join(f"| {k} | {v} |" for k, v in headline)

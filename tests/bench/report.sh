@@ -43,10 +43,16 @@ if [[ $quick == 1 ]]; then
   sizes="129 257"
   scene_triangles=300000
   repeats=1
+  vis_triangles=200000
+  vis_frames=20
+  vis_cache=16M
 else
   sizes="513 1025"
   scene_triangles=1000000
   repeats=3
+  vis_triangles=1000000
+  vis_frames=60
+  vis_cache=64M
 fi
 
 echo "== installing what is missing"
@@ -144,6 +150,31 @@ run "$view" "$store" --headless --path "$path" --size 640x480 --threads 2 --fram
   --report "$raw/walk_pegged.jsonl" > /dev/null
 run "$view" "$store" --headless --path "$path" --size 640x480 --threads 2 --cache 512M --sync-paging --oracle \
   --report "$raw/walk_sync.jsonl" > /dev/null
+
+echo "== 6. visibility classes side by side (Fig. 1)"
+# The same store, path and cache for every class; the oracle from frustum advance's run.
+vis_dir="$work/visibility"
+mkdir -p "$vis_dir"
+rm -f "$raw/visibility.csv" "$raw/visibility.md"
+vis_building="$vis_dir/building.ply"
+[[ -f "$vis_building" ]] || run "$gen" building --triangles "$vis_triangles" -o "$vis_building" --quiet
+[[ -f "$vis_dir/building.frontier" ]] || run "$fbuild" "$vis_building" -o "$vis_dir/building.frontier" --threads 2 --no-walkable --quiet
+run "$gen" path --model "$vis_building" --kind walk --frames "$vis_frames" -o "$vis_dir/building.cam"
+run "$build/tests/bench/bench_visibility" --store "$vis_dir/building.frontier" --path "$vis_dir/building.cam" \
+  --label building --size 320x240 --cache "$vis_cache" --threads 2 --cull-back-faces \
+  --csv "$raw/visibility.csv" --markdown "$raw/visibility.md"
+vis_terrain="$vis_dir/terrain.ply"
+[[ -f "$vis_terrain" ]] || run "$gen" terrain --triangles "$vis_triangles" -o "$vis_terrain" --quiet
+[[ -f "$vis_dir/terrain.frontier" ]] || run "$fbuild" "$vis_terrain" -o "$vis_dir/terrain.frontier" --threads 2 --quiet
+run "$gen" path --model "$vis_terrain" --kind fly --frames "$vis_frames" -o "$vis_dir/terrain.cam"
+run "$build/tests/bench/bench_visibility" --store "$vis_dir/terrain.frontier" --path "$vis_dir/terrain.cam" \
+  --label terrain --size 320x240 --cache "$vis_cache" --threads 2 \
+  --csv "$raw/visibility.csv" --markdown "$raw/visibility.md"
+[[ -f "$vis_dir/shells.frontier" ]] || run "$fbuild" "$spd/shells.nff" -o "$vis_dir/shells.frontier" --tessellate 16 --threads 2 --quiet
+run "$gen" path --model "$spd/shells.nff" --kind orbit --frames "$vis_frames" -o "$vis_dir/shells.cam"
+run "$build/tests/bench/bench_visibility" --store "$vis_dir/shells.frontier" --path "$vis_dir/shells.cam" \
+  --label shells --size 320x240 --cache "$vis_cache" --threads 2 --cull-back-faces \
+  --csv "$raw/visibility.csv" --markdown "$raw/visibility.md"
 
 echo "== writing $out/REPORT.md"
 python3 tests/bench/report.py "$out"
