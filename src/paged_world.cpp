@@ -81,6 +81,7 @@ PagedWorld::PagedWorld(const StoreModel& model, const PagedWorldOptions& options
   slot_.assign(top_cells_, -1);
   failed_.assign(top_cells_, 0);
   last_touched_.assign(top_cells_, 0);
+  decoded_size_.assign(top_cells_, 0);
   wanted_flag_ = std::make_unique<std::atomic<uint8_t>[]>(top_cells_);
   for (size_t c = 0; c < top_cells_; ++c) wanted_flag_[c].store(0, std::memory_order_relaxed);
 
@@ -291,6 +292,7 @@ void PagedWorld::graft(Decoded& d) {
   slot_[d.cell] = static_cast<int32_t>(live_.size());
   live_.push_back(g);
   last_touched_[d.cell] = frame_;
+  decoded_size_[d.cell] = g.bytes;
   decoded_bytes_ += g.bytes;
   ++counters_.cells_paged_in;
   counters_.primitives_paged_in += g.prims;

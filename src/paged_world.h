@@ -92,6 +92,8 @@ class PagedWorld final : public CellGate {
   uint64_t generation() const { return generation_; }
   // Records that the current frame used store cell `c` (LRU), for renderers without CellMarks.
   void touch(uint32_t store_cell) { last_touched_[store_cell] = frame_; }
+  // Bytes store cell c took decoded and refined when it was last paged in (0: never was).
+  uint64_t decoded_size(uint32_t store_cell) const { return decoded_size_[store_cell]; }
   // Store cells touched (or paged in) since the last begin_frame().
   std::vector<uint32_t> touched_this_frame() const;
   // Blocks until at least one wanted page is readable or failed (or nothing is pending), or
@@ -169,6 +171,7 @@ class PagedWorld final : public CellGate {
   std::vector<Graft> live_;
   std::vector<uint8_t> failed_;          // store cell
   std::vector<uint64_t> last_touched_;   // store cell -> frame
+  std::vector<uint64_t> decoded_size_;   // store cell -> bytes when last grafted
   uint64_t frame_ = 1;
   uint64_t generation_ = 0;              // compactions so far
 

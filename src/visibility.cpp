@@ -216,7 +216,7 @@ void CullingRenderer::traverse(Item root, bool front_to_back, std::vector<Item>*
     if (!admit(item.bounds, item.mask)) continue;
     const KdTree& tree = source_->tree();
     const KdTree::Node node = tree.nodes()[item.node];
-    if (use_pyramid_) {
+    if (use_pyramid_ && !node.is_link()) {  // a link's subtree root is queried with the same box
       // The tighter content bounds for cells; a node's region otherwise.
       const Aabb box = node.is_leaf() ? tree.cell(static_cast<int32_t>(node.child)).content : item.bounds;
       if (node.is_leaf() && tree.cell(static_cast<int32_t>(node.child)).count == 0 &&

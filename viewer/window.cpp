@@ -542,7 +542,17 @@ void WindowSession::draw_text_panel(float scale) {
   }
   std::string mode = walking_ ? "WALK" : "FLY";
   if (walking_) mode += walker_->on_floor() ? " (on floor)" : " (falling)";
+  if (r.visibility != Visibility::kFrustumAdvance) {
+    // The rasterizing classes render complete frames whatever the peg.
+    peg = fmt::format("{}: complete frames", visibility_name(r.visibility));
+  }
   lines.emplace_back(fmt::format("{}  {:.2g} m/s  {}", mode, speed_, peg), walking_ ? kGreen : kYellow);
+  if (r.cull) {
+    lines.emplace_back(fmt::format("nodes {}  primitives touched {}  rasterized {}  fragments {}", grouped(r.nodes_touched),
+                                   grouped(r.primitives_touched), grouped(r.cull->primitives_rasterized),
+                                   grouped(r.pixels_rasterized)),
+                       kWhite);
+  }
   const double filled = r.pixels ? 100.0 * double(r.image_samples) / double(r.pixels) : 0.0;
   lines.emplace_back(fmt::format("frame {}  {:.1f} ms (stall {:.1f})  samples {}  image {:.0f}%{}", r.frame,
                                  r.frame_ms, r.stall_ms, grouped(r.samples), filled,

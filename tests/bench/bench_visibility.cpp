@@ -8,9 +8,9 @@
 //       [--cull-back-faces] [--csv frames.csv] [--markdown table.md]
 //
 // Per frame and class: store cells touched, k-d nodes touched, primitive references touched,
-// fragments rasterized, the working-set bytes (the compressed pages of the cells touched: what a
-// frame must have had in memory, independent of what the cache kept), the resident bytes after
-// the frame, bytes read and frame time. Frustum advance renders complete frames (sync paging, no
+// fragments rasterized, the working set in bytes — the compressed pages of the cells touched and
+// the same cells decoded and refined (what the frame needed in memory at once, independent of
+// what the cache kept) — the resident bytes after the frame, bytes read and frame time. Frustum advance renders complete frames (sync paging, no
 // budget), like the rasterizing classes, so every class produces the same image.
 //
 // The table gives mean and max per class, the ratio to the oracle and to frustum advance, all
@@ -38,13 +38,15 @@ using namespace frontier;
 namespace {
 
 struct Row {
-  uint64_t cells = 0, nodes = 0, prims = 0, fragments = 0, working_bytes = 0, resident = 0, read = 0, oracle = 0;
+  uint64_t cells = 0, nodes = 0, prims = 0, fragments = 0, working_bytes = 0, decoded_bytes = 0, resident = 0, read = 0,
+           oracle = 0;
   double ms = 0.0;
 };
 
 struct Summary {
   double mean_cells = 0, max_cells = 0, mean_ratio = 0, max_ratio = 0, mean_prims = 0, mean_nodes = 0,
-         mean_fragments = 0, mean_working_mib = 0, max_working_mib = 0, max_resident_mib = 0, read_mib = 0,
+         mean_fragments = 0, mean_working_mib = 0, max_working_mib = 0, mean_decoded_mib = 0, max_decoded_mib = 0,
+         max_resident_mib = 0, read_mib = 0,
          mean_ms = 0, p95_ms = 0;
 };
 
@@ -67,6 +69,8 @@ Summary summarize(const std::vector<Row>& rows) {
     s.mean_fragments += double(r.fragments);
     s.mean_working_mib += double(r.working_bytes) / 1048576.0;
     s.max_working_mib = std::max(s.max_working_mib, double(r.working_bytes) / 1048576.0);
+    s.mean_decoded_mib += double(r.decoded_bytes) / 1048576.0;
+    s.max_decoded_mib = std::max(s.max_decoded_mib, double(r.decoded_bytes) / 1048576.0);
     s.max_resident_mib = std::max(s.max_resident_mib, double(r.resident) / 1048576.0);
     s.read_mib += double(r.read) / 1048576.0;
     s.mean_ms += r.ms;
@@ -78,6 +82,7 @@ Summary summarize(const std::vector<Row>& rows) {
   s.mean_nodes /= n;
   s.mean_fragments /= n;
   s.mean_working_mib /= n;
+  s.mean_decoded_mib /= n;
   s.read_mib /= n;
   s.mean_ms /= n;
   if (ratio_frames > 0) s.mean_ratio /= double(ratio_frames);
@@ -156,7 +161,7 @@ int main(int argc, char** argv) {
     csv.open(csv_path, std::ios::app);
     if (fresh) {
       csv << "label,class,frame,cells_touched,oracle_cells,nodes_touched,primitives_touched,pixels_rasterized,"
-             "working_set_bytes,resident_bytes,bytes_read,frame_ms\n";
+             "working_set_bytes,decoded_set_bytes,resident_bytes,bytes_read,frame_ms\n";
     }
   }
   std::vector<uint64_t> oracle(n, 0);
@@ -192,16 +197,19 @@ int main(int argc, char** argv) {
       row.nodes = r.nodes_touched;
       row.prims = r.primitives_touched;
       row.fragments = r.pixels_rasterized;
-      for (const uint32_t c : (*walk)->touched_cells()) row.working_bytes += page_bytes[c];
+      for (const uint32_t c : (*walk)->touched_cells()) {
+        row.working_bytes += page_bytes[c];
+        row.decoded_bytes += (*walk)->world().decoded_size(c);
+      }
       row.resident = r.resident_bytes;
       row.read = r.bytes_read;
       row.oracle = oracle[f];
       row.ms = r.frame_ms;
       rows.push_back(row);
       if (csv.is_open()) {
-        csv << fmt::format("{},{},{},{},{},{},{},{},{},{},{},{:.3f}\n", label, visibility_name(v), f, row.cells,
-                           row.oracle, row.nodes, row.prims, row.fragments, row.working_bytes, row.resident, row.read,
-                           row.ms);
+        csv << fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{:.3f}\n", label, visibility_name(v), f, row.cells,
+                           row.oracle, row.nodes, row.prims, row.fragments, row.working_bytes, row.decoded_bytes,
+                           row.resident, row.read, row.ms);
       }
     }
     summaries[v] = summarize(rows);
@@ -214,9 +222,9 @@ int main(int argc, char** argv) {
   std::string table = fmt::format(
       "\n### {} ({} frames, {}x{}, cache {})\n\n"
       "| class | cells touched mean | max | / oracle mean | / oracle max | / frustum advance | primitives touched "
-      "mean | nodes touched mean | fragments mean | working set MiB mean | max | resident MiB max | read MiB/frame | "
-      "frame ms mean | p95 |\n"
-      "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+      "mean | nodes touched mean | fragments mean | pages MiB mean | max | decoded MiB mean | max | resident MiB max | "
+      "read MiB/frame | frame ms mean | p95 |\n"
+      "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
       label, n, width, height, cache_text);
   double oracle_mean = 0.0, oracle_max = 0.0;
   for (const uint64_t o : oracle) {
@@ -224,16 +232,17 @@ int main(int argc, char** argv) {
     oracle_max = std::max(oracle_max, double(o));
   }
   oracle_mean /= double(std::max<size_t>(1, n));
-  table += fmt::format("| oracle | {:.1f} | {:.0f} | 1.000 | 1.000 | {:.3f} | | | | | | | | | |\n", oracle_mean,
+  table += fmt::format("| oracle | {:.1f} | {:.0f} | 1.000 | 1.000 | {:.3f} | | | | | | | | | | | |\n", oracle_mean,
                        oracle_max, fa.mean_cells > 0 ? oracle_mean / fa.mean_cells : 0.0);
   for (const Visibility v : ran) {
     const Summary& s = summaries[v];
     table += fmt::format(
         "| {} | {:.1f} | {:.0f} | {:.3f} | {:.3f} | {:.3f} | {:.0f} | {:.0f} | {:.0f} | {:.2f} | {:.2f} | {:.1f} | "
-        "{:.2f} | {:.1f} | {:.1f} |\n",
+        "{:.1f} | {:.1f} | {:.2f} | {:.1f} | {:.1f} |\n",
         visibility_name(v), s.mean_cells, s.max_cells, s.mean_ratio, s.max_ratio,
         fa.mean_cells > 0 ? s.mean_cells / fa.mean_cells : 0.0, s.mean_prims, s.mean_nodes, s.mean_fragments,
-        s.mean_working_mib, s.max_working_mib, s.max_resident_mib, s.read_mib, s.mean_ms, s.p95_ms);
+        s.mean_working_mib, s.max_working_mib, s.mean_decoded_mib, s.max_decoded_mib, s.max_resident_mib, s.read_mib,
+        s.mean_ms, s.p95_ms);
   }
   fmt::print("{}", table);
   if (!md_path.empty()) {

@@ -45,6 +45,7 @@ if [[ $quick == 1 ]]; then
   repeats=1
   vis_triangles=200000
   vis_frames=20
+  vis_frames_short=8
   vis_cache=16M
 else
   sizes="513 1025"
@@ -52,6 +53,7 @@ else
   repeats=3
   vis_triangles=1000000
   vis_frames=60
+  vis_frames_short=20  # terrain and shells: exhaustive re-decodes the whole store every frame (~9 s)
   vis_cache=64M
 fi
 
@@ -166,12 +168,12 @@ run "$build/tests/bench/bench_visibility" --store "$vis_dir/building.frontier" -
 vis_terrain="$vis_dir/terrain.ply"
 [[ -f "$vis_terrain" ]] || run "$gen" terrain --triangles "$vis_triangles" -o "$vis_terrain" --quiet
 [[ -f "$vis_dir/terrain.frontier" ]] || run "$fbuild" "$vis_terrain" -o "$vis_dir/terrain.frontier" --threads 2 --quiet
-run "$gen" path --model "$vis_terrain" --kind fly --frames "$vis_frames" -o "$vis_dir/terrain.cam"
+run "$gen" path --model "$vis_terrain" --kind fly --frames "$vis_frames_short" -o "$vis_dir/terrain.cam"
 run "$build/tests/bench/bench_visibility" --store "$vis_dir/terrain.frontier" --path "$vis_dir/terrain.cam" \
   --label terrain --size 320x240 --cache "$vis_cache" --threads 2 \
   --csv "$raw/visibility.csv" --markdown "$raw/visibility.md"
 [[ -f "$vis_dir/shells.frontier" ]] || run "$fbuild" "$spd/shells.nff" -o "$vis_dir/shells.frontier" --tessellate 16 --threads 2 --quiet
-run "$gen" path --model "$spd/shells.nff" --kind orbit --frames "$vis_frames" -o "$vis_dir/shells.cam"
+run "$gen" path --model "$spd/shells.nff" --kind orbit --frames "$vis_frames_short" -o "$vis_dir/shells.cam"
 run "$build/tests/bench/bench_visibility" --store "$vis_dir/shells.frontier" --path "$vis_dir/shells.cam" \
   --label shells --size 320x240 --cache "$vis_cache" --threads 2 --cull-back-faces \
   --csv "$raw/visibility.csv" --markdown "$raw/visibility.md"
