@@ -304,9 +304,7 @@ CullCounters CullingRenderer::render(const View& view, CullSource& source) {
   }
 
   const Item root{0, source.tree().bounds(), use_frustum_ ? 0x1Fu : 0u};
-  if (v == Visibility::kPortals && !counters_.portal_fallback && regions_.empty()) {
-    // Located, but nothing to draw (cannot happen with a room of positive size): no work.
-  } else if (use_pyramid_) {
+  if (use_pyramid_) {
     traverse(root, true, nullptr);
   } else {
     std::vector<Item> deferred;

@@ -171,7 +171,6 @@ class CullingRenderer {
   struct Planes;
   std::unique_ptr<Planes> planes_;
   CullCounters counters_;
-  RasterCounters raster_before_;
 };
 
 }  // namespace frontier

@@ -154,38 +154,47 @@ FrameReport Walkthrough::culling_frame(const Camera& camera) {
     image();
     r.reconstruct_ms = ms_since(finish_start);
   }
-  const PagingCounters paging = world_->take_counters();
-  const store::PageCacheStats cache = world_->cache_stats();
   r.cells_touched = world_->end_frame(CellMarks());
-  r.cells_paged_in = paging.cells_paged_in;
-  r.bytes_read = cache.bytes_read - last_bytes_read_;
-  last_bytes_read_ = cache.bytes_read;
-  r.resident_bytes = world_->resident_bytes();
   r.pinned_bytes = world_->pinned_bytes();
-  r.cache_budget = world_->budget_bytes();
   r.primitives_tested = cc.primitives_touched;
   r.pixels = view_.pixels();
   r.samples = r.image_samples = r.pixels;
   r.complete = cc.cells_unavailable == 0;
-  r.cells_evicted = paging.cells_evicted;
-  r.cells_dropped = paging.cells_dropped;
-  r.page_errors = cache.errors;
-  r.resident_cells = world_->resident_cells();
-  r.decode_ms = paging.decode_ms;
   r.stall_ms = source.stall_ms;
   r.nodes_touched = cc.nodes_touched;
   r.primitives_touched = cc.primitives_touched;
   r.pixels_rasterized = cc.pixels_rasterized;
-  const uint64_t refs = model_->info().references;
-  r.culling_rate = refs > 0 ? 1.0 - std::min(1.0, double(cc.primitives_touched) / double(refs)) : 0.0;
   r.cull = cc;
+  report_paging(r);
   r.frame_ms = ms_since(start);
-  if (oracle_) {
-    oracle_frame_ = oracle_->frame(view_, options_.threads);
-    r.oracle_cells = oracle_frame_->cells.size();
-    if (!oracle_frame_->cells.empty()) r.oracle_ratio = double(r.cells_touched) / double(oracle_frame_->cells.size());
-  }
+  report_oracle(r);
   return r;
+}
+
+// The fields every frame reports the same way, whatever rendered it: paging since the last
+// frame, the cache, and the culling rate of r.primitives_touched.
+void Walkthrough::report_paging(FrameReport& r) {
+  const PagingCounters paging = world_->take_counters();
+  const store::PageCacheStats cache = world_->cache_stats();
+  r.cells_paged_in = paging.cells_paged_in;
+  r.cells_evicted = paging.cells_evicted;
+  r.cells_dropped = paging.cells_dropped;
+  r.decode_ms = paging.decode_ms;
+  r.bytes_read = cache.bytes_read - last_bytes_read_;
+  last_bytes_read_ = cache.bytes_read;
+  r.page_errors = cache.errors;
+  r.resident_bytes = world_->resident_bytes();
+  r.resident_cells = world_->resident_cells();
+  r.cache_budget = world_->budget_bytes();
+  const uint64_t refs = model_->info().references;
+  r.culling_rate = refs > 0 ? 1.0 - std::min(1.0, double(r.primitives_touched) / double(refs)) : 0.0;
+}
+
+void Walkthrough::report_oracle(FrameReport& r) {
+  if (!oracle_) return;
+  oracle_frame_ = oracle_->frame(view_, options_.threads);
+  r.oracle_cells = oracle_frame_->cells.size();
+  if (!oracle_frame_->cells.empty()) r.oracle_ratio = double(r.cells_touched) / double(oracle_frame_->cells.size());
 }
 
 FrameReport Walkthrough::frame(const Camera& camera) {
@@ -275,20 +284,11 @@ FrameReport Walkthrough::frame(const Camera& camera) {
     r.reconstruct_ms = ms_since(finish_start);
   }
 
-  const PagingCounters paging = world_->take_counters();
-  const store::PageCacheStats cache = world_->cache_stats();
   r.cells_touched = world_->end_frame(marks_);
-  r.cells_paged_in = paging.cells_paged_in;
-  r.bytes_read = cache.bytes_read - last_bytes_read_;
-  last_bytes_read_ = cache.bytes_read;
-  r.resident_bytes = world_->resident_bytes();
   r.pinned_bytes = world_->pinned_bytes() + world_->touched_bytes();
-  r.cache_budget = world_->budget_bytes();
   r.primitives_tested = counters.primitives_tested;
   r.nodes_touched = counters.cell_visits;
   r.primitives_touched = counters.primitives_tested;
-  const uint64_t refs = model_->info().references;
-  r.culling_rate = refs > 0 ? 1.0 - std::min(1.0, double(counters.primitives_tested) / double(refs)) : 0.0;
   r.ray_primitive_tests = counters.ray_primitive_tests;
   r.rays = counters.rays;
   r.samples = counters.samples;
@@ -299,21 +299,13 @@ FrameReport Walkthrough::frame(const Camera& camera) {
   r.complete = caster_->complete();
   r.shadows = image_shadows_;
   r.parked = caster_->parked();
-  r.cells_evicted = paging.cells_evicted;
-  r.cells_dropped = paging.cells_dropped;
-  r.page_errors = cache.errors;
-  r.resident_cells = world_->resident_cells();
-  r.decode_ms = paging.decode_ms;
+  report_paging(r);
   r.frame_ms = ms_since(start);
   // The estimate follows increases at once and decreases slowly (a late frame costs more
   // than a few samples).
   const double finish = ms_since(finish_start);
   finish_ms_ = finish > finish_ms_ ? finish : 0.9 * finish_ms_ + 0.1 * finish;
-  if (oracle_) {
-    oracle_frame_ = oracle_->frame(view_, options_.threads);
-    r.oracle_cells = oracle_frame_->cells.size();
-    if (!oracle_frame_->cells.empty()) r.oracle_ratio = double(r.cells_touched) / double(oracle_frame_->cells.size());
-  }
+  report_oracle(r);
   return r;
 }
 

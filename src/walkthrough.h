@@ -144,6 +144,8 @@ class Walkthrough {
   Walkthrough() = default;
   void start_image(bool shadows);
   FrameReport culling_frame(const Camera& camera);
+  void report_paging(FrameReport& r);
+  void report_oracle(FrameReport& r);
 
   WalkOptions options_;
   std::unique_ptr<StoreModel> model_;
