@@ -98,6 +98,7 @@ struct Rasterizer::Setup {
     int64_t a, b, ox, oy, bias;
   };
   uint32_t id;
+  bool bound;                  // a surface bound: fragments cast a ray (SurfaceProgram)
   int edge_count;              // 0: nothing to rasterize
   int x0, y0, x1, y1;          // inclusive pixel bounding box, inside the screen
   double inv_c, inv_x, inv_y;  // 1/w = inv_c + inv_x x + inv_y y
@@ -114,6 +115,10 @@ RasterCounters& RasterCounters::operator+=(const RasterCounters& o) {
   fragments += o.fragments;
   depth_passes += o.depth_passes;
   skipped_primitives += o.skipped_primitives;
+  surface_rays += o.surface_rays;
+  surface_hits += o.surface_hits;
+  surface_writes += o.surface_writes;
+  back_samples_culled += o.back_samples_culled;
   setup_ms += o.setup_ms;
   raster_ms += o.raster_ms;
   return *this;
@@ -140,6 +145,7 @@ Rasterizer::~Rasterizer() = default;
 void Rasterizer::clear() {
   pending_.clear();
   pending_ids_.clear();
+  pending_bound_.clear();
   inverse_depth_.assign(view_.pixels(), 0.0);
   ids_.assign(view_.pixels(), kNoPrim);
   colors_.clear();
@@ -150,6 +156,14 @@ void Rasterizer::clear() {
 void Rasterizer::submit(const Triangle& triangle, uint32_t id) {
   pending_.push_back(triangle);
   pending_ids_.push_back(id);
+  pending_bound_.push_back(0);
+  if (pending_.size() >= kBatchTriangles) flush();
+}
+
+void Rasterizer::submit_bound(const Triangle& triangle, uint32_t id) {
+  pending_.push_back(triangle);
+  pending_ids_.push_back(id);
+  pending_bound_.push_back(1);
   if (pending_.size() >= kBatchTriangles) flush();
 }
 
@@ -278,16 +292,29 @@ void Rasterizer::raster_tile(int tile, const Setup* setups, RasterCounters& coun
   const size_t width = static_cast<size_t>(view_.width);
   double* const depth = inverse_depth_.data();
   uint32_t* const ids = ids_.data();
+  const bool depth_test = options_.depth_test;
   bool changed = false;
   for (uint32_t index : bins_[static_cast<size_t>(tile)]) {
     const Setup& s = setups[index];
     const int x0 = std::max(s.x0, tx0), x1 = std::min(s.x1, tx1);
     const int y0 = std::max(s.y0, ty0), y1 = std::min(s.y1, ty1);
+    auto nearer = [&](double inv, size_t i) { return inv > depth[i] || (inv == depth[i] && s.id < ids[i]); };
     auto fragment = [&](int x, int y) {
       const size_t i = static_cast<size_t>(y) * width + static_cast<size_t>(x);
-      const double inv = s.inv_c + s.inv_x * x + s.inv_y * y;
+      double inv = s.inv_c + s.inv_x * x + s.inv_y * y;
       ++counters.fragments;
-      if (inv > 0.0 && (inv > depth[i] || (inv == depth[i] && s.id < ids[i]))) {
+      if (inv > 0.0 && (!depth_test || nearer(inv, i))) {
+        if (s.bound) {
+          // The bound encloses the surface, so its fragment is never behind the surface's
+          // hit: a bound fragment that fails the test hides a surface that would fail it too.
+          ++counters.surface_rays;
+          const SurfaceHit hit = program_->cast(s.id, x, y, depth[i], inv);
+          if (hit == SurfaceHit::BackCulled) ++counters.back_samples_culled;
+          if (hit != SurfaceHit::Hit) return;
+          ++counters.surface_hits;
+          if (!(inv > 0.0) || (depth_test && !nearer(inv, i))) return;
+          ++counters.surface_writes;
+        }
         depth[i] = inv;
         ids[i] = s.id;
         ++counters.depth_passes;
@@ -347,7 +374,10 @@ void Rasterizer::flush() {
   arena_.execute([&] {
     tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 1024), [&](const tbb::blocked_range<size_t>& r) {
       RasterCounters& c = local.local();
-      for (size_t i = r.begin(); i != r.end(); ++i) setups[i] = set_up(pending_[i], pending_ids_[i], c);
+      for (size_t i = r.begin(); i != r.end(); ++i) {
+        setups[i] = set_up(pending_[i], pending_ids_[i], c);
+        setups[i].bound = pending_bound_[i] != 0;
+      }
     });
   });
   // Binning in submission order (the result does not depend on it, the work split does).
@@ -374,6 +404,7 @@ void Rasterizer::flush() {
   for (const RasterCounters& c : local) counters_ += c;
   pending_.clear();
   pending_ids_.clear();
+  pending_bound_.clear();
 }
 
 std::vector<int> Rasterizer::tiles_changed_since(uint64_t generation) {

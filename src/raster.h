@@ -16,6 +16,9 @@
 //    parameter t along view.ray(x, y) (a Euclidean distance, like RayHit::t).
 //  * Depth test: nearer wins; equal depth goes to the lower id. The result is a pure function of
 //    the set of (triangle, id) submitted, independent of submission order and thread count.
+//    Two modes change that on purpose: RasterOptions::depth_test = false (painter's: the last
+//    triangle submitted wins) and surface bounds (submit_bound: the fragment's ray cast decides
+//    what is written; see SurfaceProgram).
 //
 // Pipeline: submit() queues world-space triangles; flush() (run by submit() every
 // kBatchTriangles and by every framebuffer accessor) sets them up in parallel (back-face and
@@ -53,6 +56,9 @@ struct RasterOptions {
   // batching and order). Triangle parts nearer than this are lost where the ray caster would
   // see them; they cover pixels only if the triangle passes that close to the eye.
   double near_floor = 0.0;
+  // false: painter's mode. Every covered fragment overwrites the pixel (id and 1/w), in
+  // submission order, whatever its depth: BSP back-to-front rendering needs no depth test.
+  bool depth_test = true;
 };
 
 struct RasterCounters {
@@ -65,6 +71,12 @@ struct RasterCounters {
   uint64_t fragments = 0;         // pixels inside a triangle, depth-tested
   uint64_t depth_passes = 0;      // fragments that passed the depth test (written)
   uint64_t skipped_primitives = 0;  // non-triangle primitives skipped (rasterize_scene's result only)
+  // Bounds of implicit surfaces (submit_bound): a bound fragment that passes the depth test
+  // casts one ray at its surface (immediate-mode ray casting).
+  uint64_t surface_rays = 0;          // ray-surface tests cast from bound fragments
+  uint64_t surface_hits = 0;          // of those, rays that met the surface
+  uint64_t surface_writes = 0;        // hits that passed the depth test and were written
+  uint64_t back_samples_culled = 0;   // hits discarded as back-facing (back-sample culling)
   double setup_ms = 0.0;          // culling, clipping, snapping, binning
   double raster_ms = 0.0;         // tile rasterization
 
@@ -78,6 +90,22 @@ struct ClipTransform {
   glm::dmat3 to_clip{1.0};  // inverse of the View's pixel-direction map (step_x, step_y, base)
 
   Vec3 operator()(const Vec3& world) const { return to_clip * (world - eye); }
+};
+
+// What a bound fragment's ray found on its surface.
+enum class SurfaceHit : uint8_t { Miss, Hit, BackCulled };
+
+// The per-fragment step of immediate-mode ray casting (Alex & Teller 1999, §2): triangles
+// submitted with submit_bound() tessellate a conservative bound of an implicit surface; each of
+// their fragments that passes the depth test calls cast(), which intersects view.ray(x, y) with
+// surface `id` and, on a hit, returns the hit's 1/w (w: distance along the view axis, as the
+// depth test compares), written only if it passes the depth test again.
+// Thread safety: cast() is called concurrently from tile workers.
+class SurfaceProgram {
+ public:
+  virtual ~SurfaceProgram() = default;
+  // stored_inv_w: the pixel's current 1/w (0: background); a hit at or behind it loses anyway.
+  virtual SurfaceHit cast(uint32_t id, int x, int y, double stored_inv_w, double& inv_w) const = 0;
 };
 
 class Rasterizer {
@@ -99,6 +127,11 @@ class Rasterizer {
 
   // Queues a world-space triangle. `id` is the caller's (kNoPrim is reserved for background).
   void submit(const Triangle& triangle, uint32_t id);
+  // Queues a triangle of the bound of implicit surface `id`: its fragments are not written
+  // themselves but cast a ray through `program` (see SurfaceProgram). REQUIRES: a program set.
+  void submit_bound(const Triangle& triangle, uint32_t id);
+  // The program bound fragments call; must outlive the flushes that use it (nullptr: none).
+  void set_surface_program(const SurfaceProgram* program) { program_ = program; }
   // Rasterizes every queued triangle into the framebuffer.
   void flush();
 
@@ -139,6 +172,8 @@ class Rasterizer {
   // shading counters. colors() is empty until shade() runs.
   Counters shade(const Shader& shader, bool shadows);
   const std::vector<Rgb>& colors() const { return colors_; }
+  // Colours computed elsewhere (one per pixel), e.g. immediate-mode ray casting's lighting.
+  void set_colors(std::vector<Rgb> colors) { colors_ = std::move(colors); }
 
   // Copies the frame into `buffer` (resized, new frame, every pixel confirmed) so that
   // id_image(), image writers and reconstruction work on rasterized frames too.
@@ -160,6 +195,8 @@ class Rasterizer {
 
   std::vector<Triangle> pending_;
   std::vector<uint32_t> pending_ids_;
+  std::vector<uint8_t> pending_bound_;  // per pending triangle: 1 for a surface bound
+  const SurfaceProgram* program_ = nullptr;
   std::vector<std::vector<uint32_t>> bins_;  // per tile: indices of this batch's setups, in order
   std::unique_ptr<Setup[]> setups_;          // kBatchTriangles, reused by every flush
 
