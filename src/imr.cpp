@@ -312,16 +312,18 @@ BoundingPolyhedron bounding_polyhedron(const Scene& scene, uint32_t i, int slice
         const double phi = 2.0 * kPi * j / slices;
         b.vertices.push_back(centre + radius * (std::cos(phi) * u + std::sin(phi) * v));
       }
-      b.vertices.push_back(centre);
     }
-    const uint32_t n = static_cast<uint32_t>(slices);
-    const uint32_t base_centre = n, apex_first = n + 1, apex_centre = 2 * n + 1;
+    // Sides as two triangles each, the end polygons as fans (a pointed end's fan is degenerate
+    // and dropped).
+    const uint32_t n = static_cast<uint32_t>(slices), apex_first = n;
     for (uint32_t j = 0; j < n; ++j) {
       const uint32_t j1 = (j + 1) % n;
       b.faces.push_back({j, j1, apex_first + j1});
       b.faces.push_back({j, apex_first + j1, apex_first + j});
-      b.faces.push_back({base_centre, j1, j});
-      b.faces.push_back({apex_centre, apex_first + j, apex_first + j1});
+      if (j >= 1 && j + 1 < n) {
+        b.faces.push_back({0, j1, j});
+        b.faces.push_back({apex_first, apex_first + j, apex_first + j1});
+      }
     }
     finish_polyhedron(b);
   } else {
@@ -468,29 +470,29 @@ const ImplicitSurface* ImrRenderer::surface_of_prim(uint32_t i) const {
   return surface_index_[i] >= 0 ? &surfaces_[static_cast<size_t>(surface_index_[i])] : nullptr;
 }
 
-std::vector<uint32_t> ImrRenderer::issue_order(const View& view, ImrCounters& counters) const {
+std::vector<uint32_t> issue_order(const Scene& scene, const KdTree& tree, const Vec3& eye, IssueOrder kind,
+                                  uint64_t seed, uint64_t* nodes_visited) {
   std::vector<uint32_t> order;
-  order.reserve(scene_.size());
-  if (options_.order != IssueOrder::kFrontToBack) {
-    order.resize(scene_.size());
+  order.reserve(scene.size());
+  if (kind != IssueOrder::kFrontToBack) {
+    order.resize(scene.size());
     std::iota(order.begin(), order.end(), 0u);
-    if (options_.order == IssueOrder::kRandom) std::shuffle(order.begin(), order.end(), std::mt19937_64(options_.seed));
+    if (kind == IssueOrder::kRandom) std::shuffle(order.begin(), order.end(), std::mt19937_64(seed));
     return order;
   }
-  // Depth first, the child on the eye's side first; each primitive at the first cell that
-  // references it.
-  std::vector<uint8_t> issued(scene_.size(), 0);
+  std::vector<uint8_t> issued(scene.size(), 0);
   std::vector<uint32_t> stack = {0};
-  const auto& nodes = tree_.nodes();
-  while (!stack.empty()) {
-    const KdTree::Node& node = nodes[stack.back()];
+  const auto& nodes = tree.nodes();
+  uint64_t visited = 0;
+  while (!stack.empty() && !nodes.empty()) {
     const uint32_t index = stack.back();
+    const KdTree::Node& node = nodes[index];
     stack.pop_back();
-    ++counters.nodes_visited;
+    ++visited;
     if (node.is_leaf()) {
-      const KdTree::Cell& cell = tree_.cell(static_cast<int32_t>(node.child));
+      const KdTree::Cell& cell = tree.cell(static_cast<int32_t>(node.child));
       for (uint32_t r = cell.first; r < cell.first + cell.count; ++r) {
-        const uint32_t prim = tree_.ref(r);
+        const uint32_t prim = tree.ref(r);
         if (!issued[prim]) {
           issued[prim] = 1;
           order.push_back(prim);
@@ -498,14 +500,15 @@ std::vector<uint32_t> ImrRenderer::issue_order(const View& view, ImrCounters& co
       }
       continue;
     }
-    const bool eye_below = view.eye[static_cast<int>(node.axis_or_leaf)] < node.split;
+    const bool eye_below = eye[static_cast<int>(node.axis_or_leaf)] < node.split;
     const uint32_t lower = index + 1, upper = node.child;
     stack.push_back(eye_below ? upper : lower);
     stack.push_back(eye_below ? lower : upper);
   }
-  for (uint32_t i = 0; i < scene_.size(); ++i) {
-    if (!issued[i]) order.push_back(i);  // unreferenced (degenerate) primitives, for completeness
+  for (uint32_t i = 0; i < scene.size(); ++i) {
+    if (!issued[i]) order.push_back(i);
   }
+  if (nodes_visited != nullptr) *nodes_visited += visited;
   return order;
 }
 
@@ -582,7 +585,7 @@ ImrCounters ImrRenderer::render(const View& view) {
   program_->begin_frame(view, near);
 
   auto t = std::chrono::steady_clock::now();
-  const std::vector<uint32_t> order = issue_order(view, counters);
+  const std::vector<uint32_t> order = issue_order(scene_, tree_, view.eye, options_.order, options_.seed, &counters.nodes_visited);
   counters.order_ms = ms_since(t);
   t = std::chrono::steady_clock::now();
   for (uint32_t prim : order) issue(prim, view, near, counters);

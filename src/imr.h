@@ -101,7 +101,8 @@ struct BoundingPolyhedron {
 // local frame of its ImplicitSurface. Spheres: `slices` meridians and `stacks` parallels
 // (gluSphere's layout, poles on z), vertices pushed out until every face plane is at least the
 // radius from the centre. Cones: a `slices`-sided frustum whose sides touch the cone from
-// outside, closed by its end polygons. Quadrics: their bounding box. slices >= 3, stacks >= 2.
+// outside, closed by its end polygons (fans). Quadrics: their bounding box. slices >= 3,
+// stacks >= 2.
 BoundingPolyhedron bounding_polyhedron(const Scene& scene, uint32_t i, int slices, int stacks);
 
 // The polygon where the near plane {p : dot(p - eye, forward) = near} cuts `bound` (placed
@@ -113,9 +114,16 @@ std::vector<Vec3> near_cap(const BoundingPolyhedron& bound, const Vec3& origin, 
 enum class IssueOrder { kInput, kRandom, kFrontToBack };
 IssueOrder parse_issue_order(const std::string& name, bool& ok);
 const char* issue_order_name(IssueOrder order);
+// Every primitive of `scene` once, in `order` (front to back: depth first through `tree`, the
+// child on the eye's side first, each primitive at the first cell that references it; then any
+// primitive no cell references). Adds the k-d nodes visited to *nodes_visited when not null.
+std::vector<uint32_t> issue_order(const Scene& scene, const KdTree& tree, const Vec3& eye, IssueOrder order,
+                                  uint64_t seed, uint64_t* nodes_visited = nullptr);
 
 struct ImrOptions {
-  int slices = 8;                    // bound meridians / sides (the paper's "tessellation value")
+  // Bound meridians / sides (the paper's "tessellation value"). 6 (with 3 stacks): 24
+  // triangles per sphere, 20 per cone, silhouettes ~90% tight (bench_imr, Tables 9–10).
+  int slices = 6;
   int stacks = 0;                    // sphere parallels; 0: max(2, slices / 2)
   IssueOrder order = IssueOrder::kInput;
   uint64_t seed = 1;                 // for IssueOrder::kRandom
@@ -173,7 +181,6 @@ class ImrRenderer {
  private:
   class Program;
   void issue(uint32_t prim, const View& view, double near, ImrCounters& counters);
-  std::vector<uint32_t> issue_order(const View& view, ImrCounters& counters) const;
 
   const Scene& scene_;
   ImrOptions options_;

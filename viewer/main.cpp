@@ -8,7 +8,12 @@
 //   frontier-view STORE --headless [--png F] [--ids F] [--stats F]
 //       one complete frame of a store from its camera (paged, waiting for pages);
 //   frontier-view MODEL --headless [--method brute|raywalk|frustum] [--png F] [--ids F] [--stats F]
-//       a model file (NFF, PLY, OBJ, OFF) rendered in memory (or a store with --in-memory).
+//       a model file (NFF, PLY, OBJ, OFF) rendered in memory (or a store with --in-memory);
+//   frontier-view MODEL --headless --method imr|tessellated|mesa [--order O] [--bound-slices N]
+//       [--tessellation N] [--back-sample-culling]
+//       immediate-mode ray casting of its curved primitives (src/imr.h), or the paper's
+//       baselines: the objects tessellated and lit per vertex on frontier's rasterizer, or
+//       through real OpenGL (Mesa llvmpipe, offscreen EGL).
 //   Any of these with --visibility exhaustive|frustum-cull|occlusion-cull|portals renders with
 //   that visibility class (src/visibility.h) and the z-buffer rasterizer instead of frustum
 //   casting (frustum-advance, the default).
@@ -16,7 +21,9 @@
 // Exit codes: 0 success, 1 bad input (the message names the file and line or page), 2 bad options.
 #include "src/camera_path.h"
 #include "src/collision_grid.h"
+#include "src/gouraud.h"
 #include "src/image.h"
+#include "src/imr.h"
 #include "src/kdtree.h"
 #include "src/progress.h"
 #include "src/render.h"
@@ -26,6 +33,7 @@
 #include "src/walker.h"
 #include "src/walkthrough.h"
 #include "store/page_format.h"
+#include "viewer/mesa_renderer.h"
 #include "viewer/window.h"
 
 #include <CLI/CLI.hpp>
@@ -90,7 +98,9 @@ double percentile(std::vector<double> v, double p) {
 struct Options {
   std::string scene_path, size_text, method_text = "frustum", png_path, ids_path, stats_path;
   std::string cache_text = "512M", path_file, report_path, png_dir, visibility_text = "frustum-advance";
-  bool cull_back_faces = false;
+  bool cull_back_faces = false, back_sample_culling = false;
+  std::string order_text = "input";
+  int bound_slices = ImrOptions{}.slices, tessellation = TessellatedOptions{}.segments;
   bool headless = false, no_shadows = false, in_memory = false, oracle = false, sync_paging = false, walk = false;
   int threads = 0, frames = 0, png_every = 0;
   uint32_t cell_prims = 8, min_cell_prims = 0;
@@ -140,10 +150,107 @@ int render_culling_in_memory(const Options& o, const Scene& scene, const KdTree&
   return 0;
 }
 
+// One frame of a model by immediate-mode ray casting or one of the paper's two baselines.
+int render_immediate(const Options& o, const Scene& scene, const View& view) {
+  bool ok = false;
+  const IssueOrder order = parse_issue_order(o.order_text, ok);
+  std::vector<Rgb> colors;
+  std::vector<uint32_t> ids;  // scene primitive indices
+  nlohmann::json stats;
+  double ms = 0.0;
+  if (o.method_text == "imr") {
+    ImrOptions io;
+    io.slices = o.bound_slices;
+    io.order = order;
+    io.back_sample_culling = o.back_sample_culling;
+    io.cull_back_faces = o.cull_back_faces;
+    io.shadows = !o.no_shadows;
+    io.threads = o.threads;
+    ImrRenderer imr(scene, io);
+    const ImrCounters c = imr.render(view);
+    stats = c.to_json();
+    stats["bound_triangles"] = imr.bound_triangles();
+    ms = c.ms;
+    colors = imr.rasterizer().colors();
+    ids = imr.rasterizer().ids();
+  } else {
+    TessellatedOptions to;
+    to.segments = o.tessellation;
+    to.order = order;
+    to.cull_back_faces = o.cull_back_faces;
+    to.threads = o.threads;
+    TessellatedRenderer tess(scene, to);
+    if (o.method_text == "tessellated") {
+      const TessellatedCounters c = tess.render(view);
+      stats = c.to_json();
+      ms = c.ms;
+      colors = tess.rasterizer().colors();
+      ids = tess.prim_ids();
+    } else {
+      std::string error;
+      auto mesa = MesaRenderer::create(view.width, view.height, error);
+      if (!mesa) return fail(Status::io_error("--method mesa: " + error));
+      const Scene triangles = tess.tessellated_scene();
+      if (Status s = mesa->set_scene(triangles); !s) return fail(s);
+      const std::vector<uint32_t> triangle_order = tess.triangle_order(view);
+      MesaOptions mo;
+      mo.cull_back_faces = o.cull_back_faces;
+      mo.id_kind = MesaIdKind::Primitive;
+      auto frame = mesa->render(view, &triangle_order, mo);
+      if (!frame) return fail(frame.status());
+      std::vector<uint32_t> triangle_ids;
+      if (Status s = mesa->ids(view, triangle_ids, &triangle_order, mo); !s) return fail(s);
+      ids.resize(triangle_ids.size());
+      for (size_t i = 0; i < ids.size(); ++i) {
+        // Triangle k of the tessellation belongs to the scene primitive whose range holds it.
+        ids[i] = kNoPrim;
+        if (triangle_ids[i] == kNoPrim) continue;
+        uint32_t lo = 0, hi = static_cast<uint32_t>(scene.size());
+        while (hi - lo > 1) {
+          const uint32_t mid = (lo + hi) / 2;
+          (tess.triangle_range(mid).first <= triangle_ids[i] ? lo : hi) = mid;
+        }
+        ids[i] = lo;
+      }
+      stats = {{"renderer", mesa->renderer()},         {"triangles_issued", frame->triangles_issued},
+               {"vertices_lit", frame->vertices_lit},   {"pixels_covered", frame->pixels_covered},
+               {"samples_passed", frame->samples_passed}, {"lights_used", frame->lights_used},
+               {"lights_dropped", frame->lights_dropped}, {"ms", frame->frame_ms}};
+      ms = frame->frame_ms;
+      colors = frame->colors;
+    }
+    stats["tessellation"] = o.tessellation;
+    stats["triangles"] = tess.triangles();
+  }
+  fmt::print(stderr, "{}: {} primitives; {} ({}) {}x{}: {:.1f} ms\n", o.scene_path, scene.size(), o.method_text,
+             issue_order_name(order), view.width, view.height, ms);
+  if (!o.png_path.empty()) {
+    if (Status s = write_png(o.png_path, view.width, view.height, colors); !s) return fail(s);
+  }
+  if (!o.ids_path.empty()) {
+    for (uint32_t& id : ids) {
+      if (id != kNoPrim) id = scene.prims[id].source;
+    }
+    if (Status s = write_ids(o.ids_path, ids); !s) return fail(s);
+  }
+  if (!o.stats_path.empty()) {
+    stats["method"] = o.method_text;
+    stats["order"] = issue_order_name(order);
+    stats["width"] = view.width;
+    stats["height"] = view.height;
+    stats["primitives"] = scene.size();
+    std::ofstream out(o.stats_path);
+    out << stats.dump(2) << "\n";
+    if (!out) return fail(Status::io_error(o.stats_path + ": cannot write"));
+  }
+  return 0;
+}
+
 // A model file, or a store decoded whole, rendered in memory: one frame.
 int render_in_memory(const Options& o, bool store) {
-  Method method;
-  parse_method(o.method_text, method);
+  const bool immediate = o.method_text == "imr" || o.method_text == "tessellated" || o.method_text == "mesa";
+  Method method = Method::Frustum;
+  if (!immediate) parse_method(o.method_text, method);
   Scene scene;
   KdTree tree;
   KdBuildOptions build;
@@ -167,6 +274,7 @@ int render_in_memory(const Options& o, bool store) {
     height = o.height;
   }
   const View view(camera, width, height);
+  if (immediate) return render_immediate(o, scene, view);
   RenderOptions options;
   options.method = method;
   options.threads = o.threads;
@@ -396,8 +504,19 @@ int main(int argc, char** argv) {
                  "one frame: write the first-hit input primitive per pixel (uint32 little-endian, row-major, "
                  "0xFFFFFFFF = background)");
   app.add_option("--stats", o.stats_path, "one frame: write counters as JSON");
-  app.add_option("--method", o.method_text, "model file: visibility method: brute | raywalk | frustum")
-      ->check(CLI::IsMember({"brute", "raywalk", "frustum"}));
+  app.add_option("--method", o.method_text,
+                 "model file: brute | raywalk | frustum (ray casting), imr (immediate-mode ray casting of curved "
+                 "primitives), tessellated (objects tessellated, lit per vertex, frontier's rasterizer), mesa (the "
+                 "same through OpenGL: Mesa llvmpipe, offscreen)")
+      ->check(CLI::IsMember({"brute", "raywalk", "frustum", "imr", "tessellated", "mesa"}));
+  app.add_option("--order", o.order_text, "imr, tessellated, mesa: object order: input | random | front-to-back (k-d tree)")
+      ->check(CLI::IsMember({"input", "random", "front-to-back"}));
+  app.add_option("--bound-slices", o.bound_slices, "imr: bounding polyhedron slices (spheres: slices/2 stacks)")
+      ->check(CLI::Range(3, 256));
+  app.add_option("--tessellation", o.tessellation, "tessellated, mesa: segments around a full circle")
+      ->check(CLI::Range(3, 1024));
+  app.add_flag("--back-sample-culling", o.back_sample_culling,
+               "imr: discard ray samples facing away from the eye (the inside of open or clipped surfaces)");
   app.add_option("--cell-prims", o.cell_prims, "largest k-d cell kept when it could split (default 8; stores, inside a page: 16)")
       ->check(CLI::Range(1u, 1000000u));
   app.add_option("--min-cell-prims", o.min_cell_prims, "model file: cells at or below this size never split")

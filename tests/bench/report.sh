@@ -178,6 +178,10 @@ run "$build/tests/bench/bench_visibility" --store "$vis_dir/shells.frontier" --p
   --label shells --size 320x240 --cache "$vis_cache" --threads 2 --cull-back-faces \
   --csv "$raw/visibility.csv" --markdown "$raw/visibility.md"
 
+echo "== 7. immediate-mode ray casting against RC, frustum casting, tessellation and Mesa"
+# bench_imr measures at 129² and 513² (the paper's sizes) whatever --quick says.
+run "$build/tests/bench/bench_imr" --spd "$spd" --repeat "$repeats" --json "$raw/imr.json" > "$raw/imr.md"
+
 echo "== writing $out/REPORT.md"
 python3 tests/bench/report.py "$out"
 echo "report: $out/REPORT.md"
