@@ -106,15 +106,28 @@ Vec3 ImplicitSurface::gradient(const Vec3& p) const {
               2.0 * k[2] * p.z + k[4] * p.y + k[5] * p.x + k[8]);
 }
 
-bool cast_surface(const ImplicitSurface& s, const Ray& ray, double tmin, double tmax, bool back_sample_culling,
-                  SurfaceSample& sample) {
+namespace {
+
+// cast_surface in the surface's local frame: o the ray's origin there, d its direction (of any
+// length: t is measured in units of d), inv_dir = 1 / d, `box` the bounds grown by the
+// tolerance. The normal is computed only when asked for (the per-fragment test needs t alone).
+template <bool kWantNormal>
+bool cast_local(const ImplicitSurface& s, const Vec3& o, const Vec3& d, const Vec3& inv_dir, const Aabb& box,
+                double tmin, double tmax, bool back_sample_culling, SurfaceSample& sample) {
   sample = SurfaceSample{};
-  const Vec3 o = ray.origin - s.origin;
-  const Vec3& d = ray.dir;
-  const double tolerance = 1e-9 * s.scale();
-  double lo, hi;
-  if (!ray_box_interval(Ray(o, d), Aabb(s.bounds.lo - Vec3(tolerance), s.bounds.hi + Vec3(tolerance)), lo, hi)) {
-    return false;
+  // Slab test (as ray_box_interval): an axis-parallel ray tests its origin against the slab.
+  double lo = -kInfinity, hi = kInfinity;
+  for (int axis = 0; axis < 3; ++axis) {
+    if (d[axis] == 0.0) {
+      if (o[axis] < box.lo[axis] || o[axis] > box.hi[axis]) return false;
+      continue;
+    }
+    double ta = (box.lo[axis] - o[axis]) * inv_dir[axis];
+    double tb = (box.hi[axis] - o[axis]) * inv_dir[axis];
+    if (ta > tb) std::swap(ta, tb);
+    lo = std::max(lo, ta);
+    hi = std::min(hi, tb);
+    if (lo > hi) return false;
   }
   lo = std::max(lo, tmin);
   hi = std::min(hi, tmax);
@@ -153,14 +166,7 @@ bool cast_surface(const ImplicitSurface& s, const Ray& ray, double tmin, double 
     return true;
   }
   double roots[2];
-  int n;
-  if (std::abs(a) * (hi - ts) <= 1e-12 * std::abs(b)) {
-    if (b == 0.0) return false;
-    roots[0] = -c / b;
-    n = 1;
-  } else {
-    n = solve_quadratic(a, b, c, roots[0], roots[1]);
-  }
+  const int n = interval_quadratic_roots(a, b, c, hi - ts, roots);
   for (int i = 0; i < n; ++i) {
     const double t = ts + roots[i];
     if (!(t >= lo && t <= hi)) continue;
@@ -173,12 +179,41 @@ bool cast_surface(const ImplicitSurface& s, const Ray& ray, double tmin, double 
       continue;
     }
     sample.t = t;
-    sample.normal = unit_or(grad, -d);
+    if constexpr (kWantNormal) sample.normal = unit_or(grad, -d);
     sample.back = back;
     sample.culled = false;
     return true;
   }
   return false;
+}
+
+// The local box a ray is tested inside: the bounds grown by the cast tolerance.
+Aabb cast_box(const ImplicitSurface& s) {
+  const double tolerance = 1e-9 * s.scale();
+  return Aabb(s.bounds.lo - Vec3(tolerance), s.bounds.hi + Vec3(tolerance));
+}
+
+// r² when `s` is a whole sphere about its local origin (no clip planes) inside `box`, so that
+// the box cannot cut it and the direct ray-sphere test finds the same samples; else 0.
+double whole_sphere_radius2(const ImplicitSurface& s, const Aabb& box) {
+  const auto& k = s.coeff;
+  if (s.clip_count != 0 || k[0] != 1.0 || k[1] != 1.0 || k[2] != 1.0 || !(k[9] < 0.0)) return 0.0;
+  for (int j = 3; j < 9; ++j) {
+    if (k[static_cast<size_t>(j)] != 0.0) return 0.0;
+  }
+  const double r = std::sqrt(-k[9]);
+  for (int axis = 0; axis < 3; ++axis) {
+    if (!(box.lo[axis] <= -r && box.hi[axis] >= r)) return 0.0;
+  }
+  return -k[9];
+}
+
+}  // namespace
+
+bool cast_surface(const ImplicitSurface& s, const Ray& ray, double tmin, double tmax, bool back_sample_culling,
+                  SurfaceSample& sample) {
+  return cast_local<true>(s, ray.origin - s.origin, ray.dir, 1.0 / ray.dir, cast_box(s), tmin, tmax,
+                          back_sample_culling, sample);
 }
 
 bool implicit_surface_of(const Scene& scene, uint32_t i, ImplicitSurface& s) {
@@ -372,6 +407,7 @@ IssueOrder parse_issue_order(const std::string& name, bool& ok) {
   if (name == "input") return IssueOrder::kInput;
   if (name == "random" || name == "unordered") return IssueOrder::kRandom;
   if (name == "front-to-back") return IssueOrder::kFrontToBack;
+  if (name == "nearest-first") return IssueOrder::kNearestFirst;
   ok = false;
   return IssueOrder::kInput;
 }
@@ -382,6 +418,8 @@ const char* issue_order_name(IssueOrder order) {
       return "random";
     case IssueOrder::kFrontToBack:
       return "front-to-back";
+    case IssueOrder::kNearestFirst:
+      return "nearest-first";
     default:
       return "input";
   }
@@ -409,39 +447,99 @@ nlohmann::json ImrCounters::to_json() const {
           {"ms", ms}};
 }
 
-// The per-fragment ray cast: stateless apart from the frame's view and near plane.
+// The per-fragment ray cast. It works along the pixel's unnormalised direction D =
+// view.direction(x, y), whose component along the view axis is 1: the sample eye + w D is at
+// view depth w, so the ray parameter is w itself, the near plane is w >= near and the result is
+// 1/w, with no normalisation and no square root but the sphere's. begin_frame() gathers what
+// every fragment of a surface shares (the eye in its local frame, its tolerance box, and for a
+// whole sphere the direct test's constants).
 class ImrRenderer::Program final : public SurfaceProgram {
  public:
   explicit Program(const ImrRenderer& owner) : owner_(owner) {}
   void begin_frame(const View& view, double near) {
     view_ = view;
     near_ = near;
+    const std::vector<ImplicitSurface>& surfaces = owner_.surfaces_;
+    frame_.resize(surfaces.size());
+    for (size_t i = 0; i < surfaces.size(); ++i) {
+      const ImplicitSurface& s = surfaces[i];
+      Local& f = frame_[i];
+      f.eye = view.eye - s.origin;
+      f.box = cast_box(s);
+      f.radius2 = whole_sphere_radius2(s, f.box);
+      f.eye_c = glm::dot(f.eye, f.eye) - f.radius2;
+    }
   }
   SurfaceHit cast(uint32_t id, int x, int y, double stored_inv_w, double& inv_w) const override {
-    const ImplicitSurface& s = owner_.surfaces_[static_cast<size_t>(owner_.surface_index_[id])];
+    const size_t index = static_cast<size_t>(owner_.surface_index_[id]);
+    const Local& f = frame_[index];
     const Vec3 direction = view_.direction(x, y);
-    const double length = glm::length(direction);
-    const Ray ray(view_.eye, direction);
-    const double tmin = near_ * length;  // direction's component along the view axis is 1
     // The whole ray, not just up to the stored sample: a hit behind it is still a hit of the
     // ray-object test (the paper's hit rate), and the rasterizer's second depth test drops it.
     (void)stored_inv_w;
+    const bool culling = owner_.options_.back_sample_culling;
+    if (f.radius2 > 0.0) return cast_sphere(f, direction, near_, culling, inv_w);
     SurfaceSample sample;
-    if (!cast_surface(s, ray, tmin, kInfinity, owner_.options_.back_sample_culling, sample)) {
+    if (!cast_local<false>(owner_.surfaces_[index], f.eye, direction, 1.0 / direction, f.box, near_, kInfinity, culling,
+                           sample)) {
       return sample.culled ? SurfaceHit::BackCulled : SurfaceHit::Miss;
     }
-    inv_w = length / sample.t;
+    inv_w = 1.0 / sample.t;
     return SurfaceHit::Hit;
   }
 
  private:
+  struct Local {
+    Vec3 eye{0.0};       // the eye in the surface's local frame
+    Aabb box;            // cast_box(surface)
+    double radius2 = 0;  // > 0: a whole sphere about the local origin (whole_sphere_radius2)
+    double eye_c = 0;    // |eye|² - radius2
+  };
+
+  // A whole sphere's samples eye + w D, w >= near: a w² + 2 h w + c = 0 with a = D·D,
+  // h = eye·D, c = |eye|² - r², solved as intersect_sphere does, the quarter discriminant
+  // h² - a c = a r² - |eye × D|² taken from the centre's offset from the ray's line (Lagrange's
+  // identity; no cancellation between two large squares at grazing angles). Sets 1/w.
+  static SurfaceHit cast_sphere(const Local& f, const Vec3& direction, double near, bool culling, double& inv_w) {
+    const double a = glm::dot(direction, direction);
+    const double h = glm::dot(f.eye, direction);
+    const Vec3 offset = glm::cross(f.eye, direction);
+    const double disc = a * f.radius2 - glm::dot(offset, offset);
+    if (!(disc >= 0.0)) return SurfaceHit::Miss;
+    // The roots are c / q and q / a with q = -(h + sign(h) sqrt(disc)) (no cancellation); for
+    // q > 0 the first is the nearer. Each sample's 1/w is the other ratio inverted (q / c,
+    // a / q), so it need not wait for the root's division.
+    const double q = -(h + std::copysign(std::sqrt(disc), h));
+    if (q == 0.0) return SurfaceHit::Miss;  // a double root at w = 0, before the near plane
+    const double via_c = f.eye_c / q, via_a = q / a;
+    const bool c_first = q > 0.0;
+    bool culled = false;
+    for (int k = 0; k < 2; ++k) {
+      const bool use_c = c_first == (k == 0);
+      const double root = use_c ? via_c : via_a;
+      if (!(root >= near)) continue;
+      // Leaving the solid (the gradient 2p faces along the ray): a back sample.
+      if (culling && h + root * a > 0.0) {
+        culled = true;
+        continue;
+      }
+      inv_w = use_c ? q / f.eye_c : a / q;
+      return SurfaceHit::Hit;
+    }
+    return culled ? SurfaceHit::BackCulled : SurfaceHit::Miss;
+  }
+
   const ImrRenderer& owner_;
   View view_;
   double near_ = 0.0;
+  std::vector<Local> frame_;  // per surface
 };
 
 ImrRenderer::ImrRenderer(const Scene& scene, const ImrOptions& options)
-    : scene_(scene), options_(options), tree_(KdTree::build(scene)) {
+    : scene_(scene),
+      options_(options),
+      tree_(KdTree::build(scene)),
+      arena_(options.threads > 0 ? options.threads : tbb::info::default_concurrency()) {
   if (options_.stacks <= 0) options_.stacks = std::max(2, options_.slices / 2);
   shader_ = std::make_unique<Shader>(scene_, tree_);
   surface_index_.assign(scene.size(), -1);
@@ -470,10 +568,34 @@ const ImplicitSurface* ImrRenderer::surface_of_prim(uint32_t i) const {
   return surface_index_[i] >= 0 ? &surfaces_[static_cast<size_t>(surface_index_[i])] : nullptr;
 }
 
+namespace {
+
+// A lower bound of the distance from `eye` to primitive i: exact for spheres (their boxes'
+// corners stick out by up to 0.73 radius, which reorders overlapping spheres badly), the
+// distance to the bounds otherwise.
+double nearest_distance(const Scene& scene, uint32_t i, const Vec3& eye) {
+  const PrimRef& ref = scene.prims[i];
+  if (ref.kind == PrimKind::Sphere) {
+    const Sphere& s = scene.spheres[ref.index];
+    return std::max(glm::length(s.center - eye) - s.radius, 0.0);
+  }
+  const Aabb b = scene.prim_bounds(i);
+  return glm::length(glm::clamp(eye, b.lo, b.hi) - eye);
+}
+
+}  // namespace
+
 std::vector<uint32_t> issue_order(const Scene& scene, const KdTree& tree, const Vec3& eye, IssueOrder kind,
                                   uint64_t seed, uint64_t* nodes_visited) {
   std::vector<uint32_t> order;
   order.reserve(scene.size());
+  std::vector<std::pair<double, uint32_t>> nearest;
+  if (kind == IssueOrder::kNearestFirst) {
+    for (uint32_t i = 0; i < scene.size(); ++i) nearest.emplace_back(nearest_distance(scene, i, eye), i);
+    std::sort(nearest.begin(), nearest.end());
+    for (const auto& [distance, i] : nearest) order.push_back(i);
+    return order;
+  }
   if (kind != IssueOrder::kFrontToBack) {
     order.resize(scene.size());
     std::iota(order.begin(), order.end(), 0u);
@@ -490,7 +612,10 @@ std::vector<uint32_t> issue_order(const Scene& scene, const KdTree& tree, const 
     stack.pop_back();
     ++visited;
     if (node.is_leaf()) {
+      // The cell's new primitives nearest first (by the distance from the eye to their
+      // bounds): a cell can hold many overlapping objects, in any input order.
       const KdTree::Cell& cell = tree.cell(static_cast<int32_t>(node.child));
+      const size_t first_new = order.size();
       for (uint32_t r = cell.first; r < cell.first + cell.count; ++r) {
         const uint32_t prim = tree.ref(r);
         if (!issued[prim]) {
@@ -498,6 +623,12 @@ std::vector<uint32_t> issue_order(const Scene& scene, const KdTree& tree, const 
           order.push_back(prim);
         }
       }
+      nearest.clear();
+      for (size_t k = first_new; k < order.size(); ++k) {
+        nearest.emplace_back(nearest_distance(scene, order[k], eye), order[k]);
+      }
+      std::sort(nearest.begin(), nearest.end());
+      for (size_t k = first_new; k < order.size(); ++k) order[k] = nearest[k - first_new].second;
       continue;
     }
     const bool eye_below = eye[static_cast<int>(node.axis_or_leaf)] < node.split;
@@ -576,7 +707,8 @@ ImrCounters ImrRenderer::render(const View& view) {
   raster_options.cull_back_faces = options_.cull_back_faces;
   raster_options.near_floor = near;
   if (!raster_ || raster_->view().width != view.width || raster_->view().height != view.height ||
-      raster_->view().eye != view.eye || raster_->view().base != view.base || raster_->view().near != view.near) {
+      raster_->view().eye != view.eye || raster_->view().base != view.base || raster_->view().step_x != view.step_x ||
+      raster_->view().step_y != view.step_y || raster_->view().near != view.near) {
     raster_ = std::make_unique<Rasterizer>(view, raster_options);
   }
   raster_->clear();
@@ -602,48 +734,53 @@ ImrCounters ImrRenderer::render(const View& view) {
   // Deferred lighting of the visible samples, with the surfaces' analytic normals.
   t = std::chrono::steady_clock::now();
   const std::vector<uint32_t>& ids = raster_->ids();
-  const std::vector<double> depth = raster_->depth_image();
+  const std::vector<double>& inverse_depth = raster_->inverse_depth();
   std::vector<Rgb> colors(view.pixels(), shader_->background());
   struct Local {
     Counters shading;
     uint64_t lit = 0, fetches = 0;
   };
   tbb::enumerable_thread_specific<Local> local;
-  tbb::parallel_for(0, view.height, [&](int y) {
-    Local& l = local.local();
-    for (int x = 0; x < view.width; ++x) {
-      const size_t i = static_cast<size_t>(y) * static_cast<size_t>(view.width) + static_cast<size_t>(x);
-      const uint32_t id = ids[i];
-      if (id == kNoPrim) continue;
-      const Ray ray = view.ray(x, y);
-      const ImplicitSurface* s = surface_of_prim(id);
-      ++l.lit;
-      if (s == nullptr || (!s->capped && !s->textured)) {
-        colors[i] = shader_->shade(id, ray, depth[i], options_.shadows, l.shading);
-        continue;
-      }
-      const Vec3 p = ray.at(depth[i]);
-      const Vec3 q = p - s->origin;
-      Vec3 normal = unit_or(s->gradient(q), -ray.dir);
-      if (s->capped) {
-        // On a clip plane (within rounding): the cap's normal.
-        for (int j = 0; j < s->clip_count; ++j) {
-          const Vec4& plane = s->clip[static_cast<size_t>(j)];
-          if (std::abs(glm::dot(Vec3(plane), q) + plane.w) <= 1e-9 * s->scale() &&
-              std::abs(s->value(q)) > 1e-9 * glm::length(s->gradient(q)) * s->scale()) {
-            normal = Vec3(plane);
+  arena_.execute([&] {
+    tbb::parallel_for(0, view.height, [&](int y) {
+      Local& l = local.local();
+      for (int x = 0; x < view.width; ++x) {
+        const size_t i = static_cast<size_t>(y) * static_cast<size_t>(view.width) + static_cast<size_t>(x);
+        const uint32_t id = ids[i];
+        if (id == kNoPrim) continue;
+        const Vec3 direction = view.direction(x, y);
+        const Ray ray(view.eye, direction);
+        // The rasterizer's depth (Rasterizer::depth): t along the ray from the pixel's 1/w.
+        const double depth = glm::length(direction) / inverse_depth[i];
+        const ImplicitSurface* s = surface_of_prim(id);
+        ++l.lit;
+        if (s == nullptr || (!s->capped && !s->textured)) {
+          colors[i] = shader_->shade(id, ray, depth, options_.shadows, l.shading);
+          continue;
+        }
+        const Vec3 p = ray.at(depth);
+        const Vec3 q = p - s->origin;
+        Vec3 normal = unit_or(s->gradient(q), -ray.dir);
+        if (s->capped) {
+          // On a clip plane (within rounding): the cap's normal.
+          for (int j = 0; j < s->clip_count; ++j) {
+            const Vec4& plane = s->clip[static_cast<size_t>(j)];
+            if (std::abs(glm::dot(Vec3(plane), q) + plane.w) <= 1e-9 * s->scale() &&
+                std::abs(s->value(q)) > 1e-9 * glm::length(s->gradient(q)) * s->scale()) {
+              normal = Vec3(plane);
+            }
           }
         }
+        Rgb c = shader_->shade_surface(scene_.prims[id].material, normal, ray, depth, l.shading);
+        if (s->textured) {
+          const auto uv = texture_coordinates(*s, p);
+          ++l.fetches;
+          const bool odd = (static_cast<int64_t>(std::floor(uv[0])) + static_cast<int64_t>(std::floor(uv[1]))) & 1;
+          if (odd) c = Rgb{c.r * 0.5f, c.g * 0.5f, c.b * 0.5f};
+        }
+        colors[i] = c;
       }
-      Rgb c = shader_->shade_surface(scene_.prims[id].material, normal, ray, depth[i], l.shading);
-      if (s->textured) {
-        const auto uv = texture_coordinates(*s, p);
-        ++l.fetches;
-        const bool odd = (static_cast<int64_t>(std::floor(uv[0])) + static_cast<int64_t>(std::floor(uv[1]))) & 1;
-        if (odd) c = Rgb{c.r * 0.5f, c.g * 0.5f, c.b * 0.5f};
-      }
-      colors[i] = c;
-    }
+    });
   });
   for (const Local& l : local) {
     counters.lit_pixels += l.lit;

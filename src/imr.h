@@ -28,6 +28,8 @@
 #include "src/shading.h"
 #include "src/view.h"
 
+#include <tbb/task_arena.h>
+
 #include <array>
 #include <cstdint>
 #include <memory>
@@ -110,13 +112,15 @@ BoundingPolyhedron bounding_polyhedron(const Scene& scene, uint32_t i, int slice
 std::vector<Vec3> near_cap(const BoundingPolyhedron& bound, const Vec3& origin, const View& view, double near);
 
 // The order objects are issued in: the scene's, a seeded random permutation (the paper's
-// "unordered"), or front to back along the k-d tree (each primitive at its first cell).
-enum class IssueOrder { kInput, kRandom, kFrontToBack };
+// "unordered"), front to back along the k-d tree (each primitive at its first cell), or sorted
+// by the distance from the eye to the primitive (nearest first, no tree).
+enum class IssueOrder { kInput, kRandom, kFrontToBack, kNearestFirst };
 IssueOrder parse_issue_order(const std::string& name, bool& ok);
 const char* issue_order_name(IssueOrder order);
 // Every primitive of `scene` once, in `order` (front to back: depth first through `tree`, the
-// child on the eye's side first, each primitive at the first cell that references it; then any
-// primitive no cell references). Adds the k-d nodes visited to *nodes_visited when not null.
+// child on the eye's side first, each primitive at the first cell that references it, a cell's
+// new primitives sorted by the distance from the eye to their bounds; then any primitive no
+// cell references). Adds the k-d nodes visited to *nodes_visited when not null.
 std::vector<uint32_t> issue_order(const Scene& scene, const KdTree& tree, const Vec3& eye, IssueOrder order,
                                   uint64_t seed, uint64_t* nodes_visited = nullptr);
 
@@ -193,6 +197,7 @@ class ImrRenderer {
   uint64_t bound_triangles_ = 0;
   std::unique_ptr<Rasterizer> raster_;
   std::unique_ptr<Program> program_;
+  tbb::task_arena arena_;  // options_.threads workers, for the shading pass
 };
 
 }  // namespace frontier

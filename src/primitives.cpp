@@ -272,6 +272,16 @@ bool intersect_cone(const Cone& cone, const Ray& ray, double tmin, double tmax, 
   return false;
 }
 
+int interval_quadratic_roots(double a, double b, double c, double span, double roots[2]) {
+  if (std::abs(a) * span <= 1e-12 * std::abs(b)) {
+    // The second root lies >= 1e12 spans away: treat the equation as linear.
+    if (b == 0.0) return 0;
+    roots[0] = -c / b;
+    return 1;
+  }
+  return solve_quadratic(a, b, c, roots[0], roots[1]);
+}
+
 bool intersect_quadric(const Quadric& q, const Ray& ray, double tmin, double tmax, double& t) {
   const auto& k = q.coeff;  // A B C D E F G H I J
   // Only the part of the ray inside the (slightly grown) bounds can hit; this is also the
@@ -299,16 +309,7 @@ bool intersect_quadric(const Quadric& q, const Ray& ray, double tmin, double tma
                    s.y * (k[1] * s.y + k[4] * s.z + k[7]) + s.z * (k[2] * s.z + k[8]) + k[9];
 
   double roots[2];
-  int n;
-  const double span = t1 - ts;
-  if (std::abs(a) * span <= 1e-12 * std::abs(b)) {
-    // The second root lies >= 1e12 spans away: treat the equation as linear.
-    if (b == 0.0) return false;
-    roots[0] = -c / b;
-    n = 1;
-  } else {
-    n = solve_quadratic(a, b, c, roots[0], roots[1]);
-  }
+  const int n = interval_quadratic_roots(a, b, c, t1 - ts, roots);
   for (int i = 0; i < n; ++i) {
     const double hit = ts + roots[i];
     if (!(hit >= t0 && hit <= t1)) continue;

@@ -74,4 +74,9 @@ Vec3 normal_of(const Quadric& q, const Vec3& p);
 // (0, 1 or 2), written in ascending order. Handles a == 0 (linear) without dividing by zero.
 int solve_quadratic(double a, double b, double c, double& r0, double& r1);
 
+// The roots of a t² + b t + c = 0 for a ray interval `span` long (ascending, into roots[0..n)):
+// linear when the second root lies >= 1e12 spans away (a quadric seen nearly along a ruling
+// line), else solve_quadratic. Returns n (0 when a == b == 0).
+int interval_quadratic_roots(double a, double b, double c, double span, double roots[2]);
+
 }  // namespace frontier

@@ -29,7 +29,6 @@ __extension__ typedef __int128 Int128;
 // few (a vertex within rounding of a plane crossing it twice), so there is room for 16.
 constexpr int kMaxVertices = 16;
 constexpr int kClipPlanes = 5;           // near, x >= -1, x <= width, y >= -1, y <= height
-constexpr int kSpanMinWidth = 16;        // rows at least this wide find their span by division
 constexpr double kAutoNearFraction = 1e-9;
 
 // Clip-space vertex: (x w, y w, w), pixel centres at integer x, y.
@@ -40,11 +39,39 @@ struct Polygon {
   int size = 0;
 };
 
-// floor(n / d) for d > 0.
-Int128 floor_div(Int128 n, Int128 d) {
-  Int128 q = n / d;
-  if (n % d != 0 && n < 0) --q;
-  return q;
+// n as a double, within a few units in the last place (signed conversions only: cheaper than
+// the library's and than unsigned ones).
+double approximate(Int128 n) {
+  const uint64_t low = static_cast<uint64_t>(n);
+  return static_cast<double>(static_cast<int64_t>(n >> 64)) * 0x1p64 +
+         static_cast<double>(static_cast<int64_t>(low >> 1)) * 2.0;
+}
+
+// One edge function along the rows of a triangle's bounding box: E(x) = step x + r >= 0 on row
+// y, r advancing by dr per row, with a floating-point estimate of the crossing -r / step that
+// only steers the exact search (clip_span).
+struct EdgeWalk {
+  Int128 step, r, dr;
+  double crossing, dcrossing;
+};
+
+// Narrows [lo, hi] to the integers x with E(x) >= 0 (step != 0; empty: lo > hi). Exact: the
+// estimated crossing is corrected by evaluating E, a step or two however far the estimate is
+// off (at most the span's width).
+void clip_span(const EdgeWalk& e, int64_t& lo, int64_t& hi) {
+  auto inside = [&](int64_t x) { return e.step * x + e.r >= 0; };
+  const double crossing = e.crossing;
+  if (e.step > 0) {  // inside from the crossing on: the least inside x in [lo, hi + 1]
+    int64_t x = crossing <= double(lo) ? lo : crossing > double(hi) ? hi + 1 : static_cast<int64_t>(std::ceil(crossing));
+    while (x > lo && inside(x - 1)) --x;
+    while (x <= hi && !inside(x)) ++x;
+    lo = x;
+  } else {  // inside up to the crossing: the greatest inside x in [lo - 1, hi]
+    int64_t x = crossing >= double(hi) ? hi : crossing < double(lo) ? lo - 1 : static_cast<int64_t>(std::floor(crossing));
+    while (x < hi && inside(x + 1)) ++x;
+    while (x >= lo && !inside(x)) --x;
+    hi = x;
+  }
 }
 
 // Sutherland-Hodgman against one plane given as signed distances (inside: >= 0). The
@@ -302,7 +329,6 @@ void Rasterizer::raster_tile(int tile, const Setup* setups, RasterCounters& coun
     auto fragment = [&](int x, int y) {
       const size_t i = static_cast<size_t>(y) * width + static_cast<size_t>(x);
       double inv = s.inv_c + s.inv_x * x + s.inv_y * y;
-      ++counters.fragments;
       if (inv > 0.0 && (!depth_test || nearer(inv, i))) {
         if (s.bound) {
           // The bound encloses the surface, so its fragment is never behind the surface's
@@ -321,40 +347,38 @@ void Rasterizer::raster_tile(int tile, const Setup* setups, RasterCounters& coun
         changed = true;
       }
     };
+    // Each edge bounds x from one side on every row.
+    if (x0 > x1 || y0 > y1) continue;
+    EdgeWalk walk[kMaxVertices];
+    const Int128 first_row = Int128(y0) << kSubpixelBits;
+    for (int k = 0; k < s.edge_count; ++k) {
+      const Setup::Edge& e = s.edges[k];
+      EdgeWalk& w = walk[k];
+      w.step = Int128(e.a) << kSubpixelBits;
+      w.r = Int128(e.b) * (first_row - e.oy) + e.bias - Int128(e.a) * e.ox;
+      w.dr = Int128(e.b) << kSubpixelBits;
+      w.crossing = w.dcrossing = 0.0;
+      if (e.a != 0) {
+        const double scale = -1.0 / approximate(w.step);
+        w.crossing = approximate(w.r) * scale;
+        w.dcrossing = approximate(w.dr) * scale;
+      }
+    }
     for (int y = y0; y <= y1; ++y) {
-      const Int128 row = Int128(y) << kSubpixelBits;
-      if (x1 - x0 + 1 < kSpanMinWidth) {
-        // Narrow rows: step the exact edge functions pixel by pixel.
-        Int128 value[kMaxVertices], step[kMaxVertices];
-        for (int k = 0; k < s.edge_count; ++k) {
-          const Setup::Edge& e = s.edges[k];
-          value[k] = Int128(e.a) * ((Int128(x0) << kSubpixelBits) - e.ox) + Int128(e.b) * (row - e.oy) + e.bias;
-          step[k] = Int128(e.a) << kSubpixelBits;
+      int64_t lo = x0, hi = x1;
+      for (int k = 0; k < s.edge_count && lo <= hi; ++k) {
+        const EdgeWalk& w = walk[k];
+        if (w.step != 0) {
+          clip_span(w, lo, hi);
+        } else if (w.r < 0) {
+          hi = lo - 1;
         }
-        for (int x = x0; x <= x1; ++x) {
-          Int128 any_negative = 0;
-          for (int k = 0; k < s.edge_count; ++k) {
-            any_negative |= value[k];
-            value[k] += step[k];
-          }
-          if (any_negative >= 0) fragment(x, y);
-        }
-      } else {
-        // Wide rows: each edge bounds x from one side; E(x) = step x + r >= 0.
-        Int128 lo = x0, hi = x1;
-        for (int k = 0; k < s.edge_count && lo <= hi; ++k) {
-          const Setup::Edge& e = s.edges[k];
-          const Int128 step = Int128(e.a) << kSubpixelBits;
-          const Int128 r = Int128(e.b) * (row - e.oy) + e.bias - Int128(e.a) * e.ox;
-          if (step > 0) {
-            lo = std::max(lo, -floor_div(r, step));  // ceil(-r / step)
-          } else if (step < 0) {
-            hi = std::min(hi, floor_div(r, -step));
-          } else if (r < 0) {
-            hi = lo - 1;
-          }
-        }
-        for (int x = static_cast<int>(lo); x <= static_cast<int>(hi); ++x) fragment(x, y);
+      }
+      if (lo <= hi) counters.fragments += static_cast<uint64_t>(hi - lo + 1);
+      for (int x = static_cast<int>(lo); x <= static_cast<int>(hi); ++x) fragment(x, y);
+      for (int k = 0; k < s.edge_count; ++k) {
+        walk[k].r += walk[k].dr;
+        walk[k].crossing += walk[k].dcrossing;
       }
     }
   }

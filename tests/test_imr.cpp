@@ -311,6 +311,33 @@ TEST(Imr, BackSampleCullingRemovesExactlyTheBackFacingFirstHits) {
   EXPECT_GT(back, 200u);
 }
 
+// Every order issues each primitive exactly once, and the ordered ones issue nearer objects
+// first: along a row of spheres seen end-on, the order is the row's.
+TEST(Imr, IssueOrdersArePermutationsAndNearestComesFirst) {
+  Scene scene;
+  scene.materials.push_back({});
+  for (int i = 0; i < 40; ++i) scene.add_sphere({Vec3(0, 0, -3.0 * i), 1.0}, uint32_t(39 - i), 0);
+  std::reverse(scene.prims.begin(), scene.prims.end());  // input order: farthest first
+  const KdTree tree = KdTree::build(scene);
+  const Vec3 eye(0.3, 0.2, 10.0);
+  for (const IssueOrder kind : {IssueOrder::kInput, IssueOrder::kRandom, IssueOrder::kFrontToBack, IssueOrder::kNearestFirst}) {
+    std::vector<uint32_t> order = issue_order(scene, tree, eye, kind, 5);
+    ASSERT_EQ(order.size(), scene.size()) << issue_order_name(kind);
+    if (kind == IssueOrder::kFrontToBack || kind == IssueOrder::kNearestFirst) {
+      for (size_t k = 1; k < order.size(); ++k) {
+        const double a = scene.spheres[scene.prims[order[k - 1]].index].center.z;
+        const double b = scene.spheres[scene.prims[order[k]].index].center.z;
+        EXPECT_GT(a, b) << issue_order_name(kind) << " at " << k;
+      }
+    }
+    std::sort(order.begin(), order.end());
+    for (uint32_t i = 0; i < order.size(); ++i) ASSERT_EQ(order[i], i);
+    bool ok = false;
+    EXPECT_EQ(parse_issue_order(issue_order_name(kind), ok), kind);
+    EXPECT_TRUE(ok);
+  }
+}
+
 TEST(Imr, TextureCoordinatesComeFromPlanesAndAreFetchedOnlyWhenDeclared) {
   Scene scene;
   scene.materials.push_back({});

@@ -13,7 +13,10 @@
 //       [--tessellation N] [--back-sample-culling]
 //       immediate-mode ray casting of its curved primitives (src/imr.h), or the paper's
 //       baselines: the objects tessellated and lit per vertex on frontier's rasterizer, or
-//       through real OpenGL (Mesa llvmpipe, offscreen EGL).
+//       through real OpenGL (Mesa llvmpipe, offscreen EGL);
+//   frontier-view MODEL --headless --method bsp [--bsp-candidates K] [--aa NxN] [--bsp-stats F]
+//       a BSP tree (src/bsp.h) built with K root candidates per node, rendered back to front
+//       (painter's, no depth buffer) or, with --aa, front to back with an NxN coverage mask.
 //   Any of these with --visibility exhaustive|frustum-cull|occlusion-cull|portals renders with
 //   that visibility class (src/visibility.h) and the z-buffer rasterizer instead of frustum
 //   casting (frustum-advance, the default).
@@ -21,6 +24,8 @@
 // Exit codes: 0 success, 1 bad input (the message names the file and line or page), 2 bad options.
 #include "src/camera_path.h"
 #include "src/collision_grid.h"
+#include "src/bsp.h"
+#include "src/bsp_render.h"
 #include "src/gouraud.h"
 #include "src/image.h"
 #include "src/imr.h"
@@ -99,7 +104,8 @@ struct Options {
   std::string scene_path, size_text, method_text = "frustum", png_path, ids_path, stats_path;
   std::string cache_text = "512M", path_file, report_path, png_dir, visibility_text = "frustum-advance";
   bool cull_back_faces = false, back_sample_culling = false;
-  std::string order_text = "input";
+  std::string order_text = "input", aa_text, bsp_stats_path;
+  int bsp_candidates = BspBuildOptions{}.candidates;
   int bound_slices = ImrOptions{}.slices, tessellation = TessellatedOptions{}.segments;
   bool headless = false, no_shadows = false, in_memory = false, oracle = false, sync_paging = false, walk = false;
   int threads = 0, frames = 0, png_every = 0;
@@ -246,11 +252,73 @@ int render_immediate(const Options& o, const Scene& scene, const View& view) {
   return 0;
 }
 
+// One frame of a model through a BSP tree: painter's, or front to back with a coverage mask.
+int render_bsp_frame(const Options& o, const Scene& scene, const View& view) {
+  int aa = 0;
+  if (!o.aa_text.empty()) {
+    int n = 0, m = 0;
+    char x = 0;
+    if (std::sscanf(o.aa_text.c_str(), "%d%c%d", &n, &x, &m) != 3 || x != 'x' || n != m ||
+        (n != 1 && n != 2 && n != 4 && n != 8 && n != 16)) {
+      return bad_option("--aa " + o.aa_text + ": expected NxN with N in 1, 2, 4, 8, 16 (the paper's: 4x4)");
+    }
+    aa = n;
+  }
+  const PolygonSoup soup = polygon_soup(scene, o.tessellation);
+  BspBuildOptions bo;
+  bo.candidates = o.bsp_candidates;
+  auto tree = BspTree::build(soup, bo);
+  if (!tree) return fail(Status::invalid_argument(o.scene_path + ": " + tree.status().message()));
+  const BspStats stats = tree->stats();
+  fmt::print(stderr, "{}", stats.to_text());
+  BspRenderOptions ro;
+  ro.order = aa > 0 ? BspOrder::FrontToBack : BspOrder::BackToFront;
+  ro.aa = aa > 0 ? aa : 1;
+  ro.cull_back_faces = o.cull_back_faces;
+  ro.threads = o.threads;
+  ro.background = scene.background;
+  const BspFrame frame = render_bsp(*tree, view, ro);
+  fmt::print(stderr, "{}: {} polygons -> {} faces; bsp {} {}x{}: {:.1f} ms\n", o.scene_path, stats.input_polygons,
+             stats.output_polygons, aa > 0 ? fmt::format("front-to-back {}x{}", aa, aa) : std::string("painter's"),
+             view.width, view.height, frame.counters.total_ms);
+  if (!o.png_path.empty()) {
+    if (Status s = write_png(o.png_path, view.width, view.height, frame.colors); !s) return fail(s);
+  }
+  if (!o.ids_path.empty()) {
+    std::vector<uint32_t> ids = frame.ids;
+    for (uint32_t& id : ids) {
+      if (id != kNoPrim) id = tree->faces()[id].source;
+    }
+    if (Status s = write_ids(o.ids_path, ids); !s) return fail(s);
+  }
+  for (const std::string& path : {o.stats_path, o.bsp_stats_path}) {
+    if (path.empty()) continue;
+    nlohmann::json j = nlohmann::json::parse(stats.to_json());
+    if (path == o.stats_path) {
+      const BspFrameCounters& c = frame.counters;
+      j["method"] = "bsp";
+      j["order"] = aa > 0 ? "front-to-back" : "back-to-front";
+      j["aa"] = aa;
+      j["width"] = view.width;
+      j["height"] = view.height;
+      j["frame"] = {{"nodes_visited", c.nodes_visited},   {"faces_drawn", c.faces_drawn},
+                    {"faces_culled_back", c.faces_culled_back}, {"pixel_visits", c.pixel_visits},
+                    {"pixels_skipped_full", c.pixels_skipped_full}, {"pixels_full", c.pixels_full},
+                    {"traverse_ms", c.traverse_ms},        {"raster_ms", c.raster_ms},
+                    {"ms", c.total_ms}};
+    }
+    std::ofstream out(path);
+    out << j.dump(2) << "\n";
+    if (!out) return fail(Status::io_error(path + ": cannot write"));
+  }
+  return 0;
+}
+
 // A model file, or a store decoded whole, rendered in memory: one frame.
 int render_in_memory(const Options& o, bool store) {
   const bool immediate = o.method_text == "imr" || o.method_text == "tessellated" || o.method_text == "mesa";
   Method method = Method::Frustum;
-  if (!immediate) parse_method(o.method_text, method);
+  if (!immediate && o.method_text != "bsp") parse_method(o.method_text, method);
   Scene scene;
   KdTree tree;
   KdBuildOptions build;
@@ -275,6 +343,7 @@ int render_in_memory(const Options& o, bool store) {
   }
   const View view(camera, width, height);
   if (immediate) return render_immediate(o, scene, view);
+  if (o.method_text == "bsp") return render_bsp_frame(o, scene, view);
   RenderOptions options;
   options.method = method;
   options.threads = o.threads;
@@ -507,13 +576,21 @@ int main(int argc, char** argv) {
   app.add_option("--method", o.method_text,
                  "model file: brute | raywalk | frustum (ray casting), imr (immediate-mode ray casting of curved "
                  "primitives), tessellated (objects tessellated, lit per vertex, frontier's rasterizer), mesa (the "
-                 "same through OpenGL: Mesa llvmpipe, offscreen)")
-      ->check(CLI::IsMember({"brute", "raywalk", "frustum", "imr", "tessellated", "mesa"}));
-  app.add_option("--order", o.order_text, "imr, tessellated, mesa: object order: input | random | front-to-back (k-d tree)")
-      ->check(CLI::IsMember({"input", "random", "front-to-back"}));
+                 "same through OpenGL: Mesa llvmpipe, offscreen), bsp (a BSP tree: painter's, or front to back "
+                 "with --aa)")
+      ->check(CLI::IsMember({"brute", "raywalk", "frustum", "imr", "tessellated", "mesa", "bsp"}));
+  app.add_option("--bsp-candidates", o.bsp_candidates,
+                 "bsp: root candidates tried per node, the one cutting fewest others wins (0: all; paper: 5)")
+      ->check(CLI::Range(0, 1 << 30));
+  app.add_option("--aa", o.aa_text, "bsp: front-to-back rendering with an NxN sub-pixel coverage mask (1x1 .. 16x16; paper: 4x4)");
+  app.add_option("--bsp-stats", o.bsp_stats_path, "bsp: write the tree statistics (sizes, splits, depth, build ms) as JSON");
+  app.add_option("--order", o.order_text,
+                 "imr, tessellated, mesa: object order: input | random | front-to-back (k-d tree) | nearest-first "
+                 "(sorted by distance)")
+      ->check(CLI::IsMember({"input", "random", "front-to-back", "nearest-first"}));
   app.add_option("--bound-slices", o.bound_slices, "imr: bounding polyhedron slices (spheres: slices/2 stacks)")
       ->check(CLI::Range(3, 256));
-  app.add_option("--tessellation", o.tessellation, "tessellated, mesa: segments around a full circle")
+  app.add_option("--tessellation", o.tessellation, "tessellated, mesa, bsp: segments around a full circle")
       ->check(CLI::Range(3, 1024));
   app.add_flag("--back-sample-culling", o.back_sample_culling,
                "imr: discard ray samples facing away from the eye (the inside of open or clipped surfaces)");

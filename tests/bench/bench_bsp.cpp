@@ -47,6 +47,21 @@ struct Model {
   Camera camera;
 };
 
+// Best frame time of the z-buffer baseline: every triangle of the model through the rasterizer.
+double zbuffer_ms(const Model& m, const View& view, int threads, int repeats) {
+  double best = kInfinity;
+  RasterOptions ro;
+  ro.threads = threads;
+  Rasterizer r(view, ro);
+  for (int rep = 0; rep < repeats; ++rep) {
+    r.clear();
+    const auto start = std::chrono::steady_clock::now();
+    rasterize_scene(m.triangles, r);
+    best = std::min(best, ms_since(start));
+  }
+  return best;
+}
+
 bool parse_size(const std::string& s, int& w, int& h) { return std::sscanf(s.c_str(), "%dx%d", &w, &h) == 2 && w > 0 && h > 0; }
 
 std::string candidates_name(int k) { return k == 0 ? "all" : std::to_string(k); }
@@ -168,18 +183,7 @@ int main(int argc, char** argv) {
         return 1;
       }
       const View view(m.camera, w, h);
-      double z_ms = kInfinity;
-      {
-        RasterOptions ro;
-        ro.threads = threads;
-        Rasterizer r(view, ro);
-        for (int rep = 0; rep < repeats; ++rep) {
-          r.clear();
-          const auto start = std::chrono::steady_clock::now();
-          rasterize_scene(m.triangles, r);
-          z_ms = std::min(z_ms, ms_since(start));
-        }
-      }
+      const double z_ms = zbuffer_ms(m, view, threads, repeats);
       auto best = [&](const BspRenderOptions& options, BspFrameCounters* counters) {
         double ms = kInfinity;
         for (int rep = 0; rep < repeats; ++rep) {
@@ -224,18 +228,7 @@ int main(int argc, char** argv) {
     const BspTree& tree = *render_trees[mi];
     const Model& m = models[mi];
     const View view(m.camera, w, h);
-    double z_ms = kInfinity;
-    {
-      RasterOptions ro;
-      ro.threads = threads;
-      Rasterizer r(view, ro);
-      for (int rep = 0; rep < repeats; ++rep) {
-        r.clear();
-        const auto start = std::chrono::steady_clock::now();
-        rasterize_scene(m.triangles, r);
-        z_ms = std::min(z_ms, ms_since(start));
-      }
-    }
+    const double z_ms = zbuffer_ms(m, view, threads, repeats);
     BspRenderOptions options;
     options.threads = threads;
     options.order = BspOrder::FrontToBack;

@@ -86,11 +86,8 @@ std::string si(double v) {
   return fmt::format("{:.0f}", v);
 }
 
-// The paper's tessellation rule (§4.1): a tessellated object must cover about 90% of the pixels
-// its ray-cast equivalent covers. Measured on one sphere and one cylinder seen alone, large
-// (~13,000 pixels), so it does not depend on the image size; the scene's level is the smallest
-// whose every curved kind present reaches `coverage`.
-double isolated_coverage(bool cylinder, int level) {
+// One unit sphere, or a cylinder of radius 0.5 and length 2 along z, at the origin.
+Scene lone_object(bool cylinder) {
   Scene scene;
   scene.materials.push_back({});
   if (cylinder) {
@@ -98,6 +95,15 @@ double isolated_coverage(bool cylinder, int level) {
   } else {
     scene.add_sphere({Vec3(0), 1.0}, 0, 0);
   }
+  return scene;
+}
+
+// The paper's tessellation rule (§4.1): a tessellated object must cover about 90% of the pixels
+// its ray-cast equivalent covers. Measured on one sphere and one cylinder seen alone, large
+// (~13,000 pixels), so it does not depend on the image size; the scene's level is the smallest
+// whose every curved kind present reaches `coverage`.
+double isolated_coverage(bool cylinder, int level) {
+  const Scene scene = lone_object(cylinder);
   Camera cam;
   cam.eye = cylinder ? Vec3(4.0, 1.5, 1.0) : Vec3(0, 0, 4.0);
   cam.up = cylinder ? Vec3(0, 0, 1) : Vec3(0, 1, 0);
@@ -122,13 +128,7 @@ double isolated_coverage(bool cylinder, int level) {
 // bound's pixels (rasterized, front faces) against the object's (exact ray casting).
 json bound_accuracy(bool cylinder, const std::vector<int>& levels, const std::vector<int>& sizes_px) {
   json rows = json::array();
-  Scene scene;
-  scene.materials.push_back({});
-  if (cylinder) {
-    scene.add_cone({Vec3(0, 0, -1), 0.5, Vec3(0, 0, 1), 0.5}, 0, 0);
-  } else {
-    scene.add_sphere({Vec3(0), 1.0}, 0, 0);
-  }
+  const Scene scene = lone_object(cylinder);
   for (const int target : sizes_px) {
     // Image size so the object covers about `target` pixels at a 30° field of view.
     Camera cam;

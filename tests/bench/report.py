@@ -525,6 +525,60 @@ def section_imr():
                                  "set xlabel 'frame ms'\nset ylabel '" + label + "'\nset logscale x\n"
                                  + ("set logscale y\n" if logy else "") + "plot " + ", ".join(series) + "\n",
                                  f"imr_{metric}.png"))
+    runs = data.get("runs", [])
+    def rng(values, f="{:.1f}"):
+        values = [v for v in values if v == v]
+        if not values:
+            return "?"
+        lo, hi = f.format(min(values)), f.format(max(values))
+        return lo if lo == hi else lo + "–" + hi
+    def ratio(r, a, ka, b, kb):
+        return float(r[a][ka]) / max(1.0, float(r[b][kb]))
+    if runs:
+        hi_runs = [r for r in runs if r["size"] == max(x["size"] for x in runs)]
+        out.append("### Where these numbers differ from the paper's, and why\n")
+        out.append(
+            "- **Triangles (Table 1)**: IMR issues " + rng([ratio(r, "tess_unordered", "triangles_issued", "imr_unordered", "triangles_issued") for r in runs]) +
+            "x fewer triangles than the tessellation (paper: 4.8–8.9x). The 90% rule here is applied to a lone large "
+            "sphere and cylinder (the level where the inscribed mesh covers 90% of the exact pixels), which picks the "
+            "same level for every scene and size; the paper's Mesa used ~54 triangles per rings object and ~11 per IMR "
+            "bound, ours " + f"{data.get('imr_slices')}" + " slices (24 per sphere, 20 per cone, a closed convex polyhedron).\n"
+            "- **Pixels covered (Table 2)**: IMR covers *fewer* fragments than the tessellation (paper: 12–27% more) "
+            "because a bound is closed and convex, so its back faces are culled before rasterization, while NFF cones "
+            "are open and the tessellated baseline must draw both sides (no culling) to show their insides as RC does.\n"
+            "- **Ray-object tests and hit rate (Tables 3–4)**: RC here is frontier's ray walking, which tests every "
+            "primitive referenced by the cells a ray visits (no separate ray-bound tests), so its hit rate is " +
+            rng([100.0 * ratio(r, "rc", "hits", "rc", "ray_object_tests") for r in runs]) + "% (paper 3–33%) and IMR saves " +
+            rng([ratio(r, "rc", "ray_object_tests", "imr_ordered", "ray_object_tests") for r in runs]) +
+            "x of its ray-object tests (paper 2.1–3.5x). IMR hits " +
+            rng([100.0 * ratio(r, "imr_ordered", "ray_object_hits", "imr_ordered", "ray_object_tests") for r in runs]) +
+            "% of its tests (paper 85–94%); shells is lowest: its spheres are packed so tightly that a bound fragment "
+            "often passes the depth test beside its sphere's silhouette.\n"
+            "- **Frame time (Table 6)**: the paper's IMR was 2–20x faster than RC. Here, at the largest size, IMR "
+            "takes " + ", ".join(f"{r['scene']} {r['imr_ordered']['ms']:.0f} ms" for r in hi_runs) + " against RC's " +
+            ", ".join(f"{r['rc']['ms']:.0f}" for r in hi_runs) + " and Mesa's " +
+            ", ".join(f"{r.get('mesa_ordered', {}).get('ms', float('nan')):.0f}" for r in hi_runs) +
+            " (front to back). At 129² RC and frustum casting win: they run on a k-d tree with two modern cores, while "
+            "IMR's time there is the bounds' rasterization setup (~150 K triangles per frame whatever the image "
+            "size). Mesa is llvmpipe, a JIT-compiled multi-threaded rasterizer far faster than 1999's Mesa, and on "
+            "shells, whose depth complexity (bound fragments per pixel) is " +
+            rng([float(r["imr_unordered"]["pixels_covered"]) / (r["size"] ** 2) for r in hi_runs if r["scene"] == "shells"]) +
+            " at the largest size (rings " + rng([float(r["imr_unordered"]["pixels_covered"]) / (r["size"] ** 2) for r in hi_runs if r["scene"] == "rings"]) +
+            "), every bound fragment that passes the depth test costs a ray-quadric test — the paper's worst case "
+            "too (IMR only 10% faster than Mesa there).\n"
+            "- **Front to back (Tables 3, 5)**: the k-d tree order saves ray-object tests and writes on rings and tree, "
+            "as the paper's 5–10%, but costs more than a random order on shells: its spheres overlap deeply and differ "
+            "in size, so a sphere whose nearest point is close (a big one) is mostly hidden behind smaller ones — "
+            "sorting by distance does no better (`--order nearest-first`), which is why the paper called it rough.\n"
+            "- **Resolution (Tables 7–8)**: ray-casting work grows with the pixel count for both (15.7–15.9x for 15.8x "
+            "the pixels, as the paper's 15.4–19.8x); IMR's time grows faster than in the paper because its fixed "
+            "rasterization share is smaller here.\n"
+            "- **Silhouettes (Tables 9–10)**: the bound accuracy at a given tessellation value is close to the paper's "
+            "for the cylinder; for the sphere ours is higher at 4 (our bound keeps slices = stacks = 4 as an "
+            "octahedron-like polyhedron scaled to touch the sphere, the paper's gluSphere bound).\n"
+            "- **Tessellated silhouettes on shells** match the exact image at only a few % of the pixels: the "
+            "inscribed meshes of neighbouring, deeply interpenetrating spheres change which sphere is in front almost "
+            "everywhere, so its depth error is the more telling curve there.\n")
     out.append("### What accuracy costs in time\n")
     out.append("Each tessellation level of the scene (labels) against its frame time; IMR's point is exact "
                "(silhouette error 0, depth error at rounding).\n")
@@ -533,6 +587,22 @@ def section_imr():
         if r["size"] == big:
             headline.append((f"IMR {r['scene']} {big}²: frame ms, IMR / Mesa / RC (front to back)",
                              f"{r['imr_ordered']['ms']:.1f} / {r.get('mesa_ordered', {}).get('ms', float('nan')):.1f} / {r['rc']['ms']:.1f}"))
+
+
+def section_bsp():
+    out.append("## 8. BSP trees (Fuchs, Abram & Grant 1983, Tables 1-2, measured)\n")
+    if not os.path.exists(raw_path("bsp.md")):
+        out.append("No measurements (raw/bsp.md missing).\n")
+        return
+    out.append("`bench_bsp` builds each model's BSP tree with k random root candidates per node (the one whose "
+               "plane cuts the fewest others wins, §3.1), reports the tree against the input (Table 1), and renders "
+               "the k=5 tree back to front (painter's, no depth buffer), back to front with back faces removed, and "
+               "front to back with a 4×4 coverage mask (§4.2) against frontier's z-buffer rasterizer drawing the "
+               "unsplit triangles in the same run (Table 2); then the coverage-mask size against its edge error "
+               "(mean absolute colour error on edge pixels against a 16×16 reference) and time. Models: Debian's "
+               "CGAL meshes (libcgal-demo), the SPD scenes tessellated (8 segments), generated building and terrain. "
+               "'>budget' marks builds abandoned at the time budget.\n")
+    out.append(read_text("bsp.md").strip() + "\n")
 
 
 def section_commands():
@@ -549,6 +619,7 @@ section_stability()
 section_walk()
 section_visibility()
 section_imr()
+section_bsp()
 section_commands()
 text = "\n".join(out)
 head = "| headline | measured |\n|---|---|\n" + "\n".join(f"| {k} | {v} |" for k, v in headline)

@@ -182,6 +182,27 @@ echo "== 7. immediate-mode ray casting against RC, frustum casting, tessellation
 # bench_imr measures at 129² and 513² (the paper's sizes) whatever --quick says.
 run "$build/tests/bench/bench_imr" --spd "$spd" --repeat "$repeats" --json "$raw/imr.json" > "$raw/imr.md"
 
+echo "== 8. BSP trees: tree sizes, painter's and coverage-mask rendering against the z-buffer"
+# Debian's CGAL meshes (libcgal-demo ships them in libcgal-dev's data.tar.gz), the SPD scenes
+# and generated models; 'all' candidates only up to 5,000 polygons (O(n²) per node).
+bsp_dir="$work/bsp"
+mkdir -p "$bsp_dir"
+if [[ ! -d "$bsp_dir/data/meshes" ]]; then
+  dpkg-query -W -f='${Status}' libcgal-demo 2>/dev/null | grep -q "install ok installed" ||
+    apt-get install -y --no-install-recommends libcgal-demo >/dev/null
+  tar -xzf /usr/share/doc/libcgal-dev/data.tar.gz -C "$bsp_dir"
+fi
+meshes=()
+for m in anchor pinion boeing elk knot; do meshes+=("$bsp_dir/data/meshes/$m.off"); done
+bsp_triangles=$([[ $quick == 1 ]] && echo 100000 || echo 1000000)
+run "$gen" building --triangles "$bsp_triangles" -o "$bsp_dir/building.ply" --quiet
+run "$gen" terrain --triangles "$bsp_triangles" -o "$bsp_dir/terrain.ply" --quiet
+{
+  run "$build/tests/bench/bench_bsp" "${meshes[@]}" --all-max 5000 --budget-ms 120000 --repeats "$repeats"
+  run "$build/tests/bench/bench_bsp" "$spd/rings.nff" "$spd/tree.nff" "$spd/shells.nff" "$bsp_dir/building.ply" \
+    "$bsp_dir/terrain.ply" --segments 8 --all-max 0 --candidates 1 3 5 15 --budget-ms 60000 --repeats "$repeats"
+} > "$raw/bsp.md"
+
 echo "== writing $out/REPORT.md"
 python3 tests/bench/report.py "$out"
 echo "report: $out/REPORT.md"

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets with clang (ASan + UBSan) and runs each for SECONDS (default
 # 60), seeded with the SPD scenes and small generated files (the cell page target writes valid
-# pages of both codecs into its corpus itself, FRONTIER_FUZZ_SEEDS). Findings land in
+# pages of both codecs into its corpus itself, FRONTIER_FUZZ_SEEDS; the BSP target decodes any
+# bytes into a polygon soup of coplanar stacks, near-coplanar fans and slivers). Findings land in
 # build-fuzz/findings/. Usage: tests/fuzz/run.sh [SECONDS]
 set -euo pipefail
 seconds=${1:-60}
@@ -9,9 +10,9 @@ root=$(cd "$(dirname "$0")/../.." && pwd)
 build="$root/build-fuzz"
 CC=clang CXX=clang++ cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DFRONTIER_FUZZ=ON -DFRONTIER_BUILD_TESTS=OFF > /dev/null
-cmake --build "$build" --target fuzz_nff fuzz_ply fuzz_obj fuzz_off fuzz_cell_page
+cmake --build "$build" --target fuzz_nff fuzz_ply fuzz_obj fuzz_off fuzz_cell_page fuzz_bsp
 mkdir -p "$build/findings"
-for format in nff ply obj off cell_page; do
+for format in nff ply obj off cell_page bsp; do
   corpus="$build/corpus/$format"
   mkdir -p "$corpus"
   case $format in
@@ -20,6 +21,7 @@ for format in nff ply obj off cell_page; do
     obj) printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nvn 0 0 1\nf 1//1 2//1 3//1\nf -1 -2 -3\n' > "$corpus/quad.obj" ;;
     off) printf 'OFF\n4 2 0\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2\n3 1 3 2\n' > "$corpus/quad.off" ;;
     cell_page) export FRONTIER_FUZZ_SEEDS="$corpus" ;;
+    bsp) head -c 512 /dev/urandom > "$corpus/random" ;;  # any bytes decode to a polygon soup
   esac
   echo "fuzz_$format: $seconds s"
   "$build/tests/fuzz/fuzz_$format" -max_total_time="$seconds" -max_len=65536 -timeout=10 \
