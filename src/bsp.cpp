@@ -154,17 +154,7 @@ class BspBuilder {
     }
     return front && back ? Side::Spanning : front ? Side::Front : back ? Side::Back : Side::Coplanar;
   }
-  bool spans(uint32_t f, const Vec4& plane) {
-    ++stats_.classifications;
-    bool front = false, back = false;
-    for (const Vec3& v : vertices(f)) {
-      const double d = distance(plane, v);
-      front |= d > tol_;
-      back |= d < -tol_;
-      if (front && back) return true;
-    }
-    return false;
-  }
+  bool spans(uint32_t f, const Vec4& plane) { return classify(f, plane) == Side::Spanning; }
   uint32_t add_fragment(std::vector<Vec3>& v, uint32_t origin) {
     fragments_.push_back({uint32_t(pool_.size()), uint32_t(v.size()), origin});
     pool_.insert(pool_.end(), v.begin(), v.end());

@@ -62,7 +62,9 @@ TessellatedCounters TessellatedRenderer::render(const View& view) {
   RasterOptions raster_options;
   raster_options.threads = options_.threads;
   raster_options.cull_back_faces = options_.cull_back_faces;
-  raster_ = std::make_unique<Rasterizer>(view, raster_options);
+  if (!raster_ || !raster_->matches(view, raster_options)) raster_ = std::make_unique<Rasterizer>(view, raster_options);
+  raster_->clear();
+  raster_->reset_counters();
 
   auto t = std::chrono::steady_clock::now();
   const std::vector<uint32_t> order = issue_order(scene_, tree_, view.eye, options_.order, options_.seed);

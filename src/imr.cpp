@@ -470,13 +470,10 @@ class ImrRenderer::Program final : public SurfaceProgram {
       f.eye_c = glm::dot(f.eye, f.eye) - f.radius2;
     }
   }
-  SurfaceHit cast(uint32_t id, int x, int y, double stored_inv_w, double& inv_w) const override {
+  SurfaceHit cast(uint32_t id, int x, int y, double& inv_w) const override {
     const size_t index = static_cast<size_t>(owner_.surface_index_[id]);
     const Local& f = frame_[index];
     const Vec3 direction = view_.direction(x, y);
-    // The whole ray, not just up to the stored sample: a hit behind it is still a hit of the
-    // ray-object test (the paper's hit rate), and the rasterizer's second depth test drops it.
-    (void)stored_inv_w;
     const bool culling = owner_.options_.back_sample_culling;
     if (f.radius2 > 0.0) return cast_sphere(f, direction, near_, culling, inv_w);
     SurfaceSample sample;
@@ -706,11 +703,7 @@ ImrCounters ImrRenderer::render(const View& view) {
   raster_options.threads = options_.threads;
   raster_options.cull_back_faces = options_.cull_back_faces;
   raster_options.near_floor = near;
-  if (!raster_ || raster_->view().width != view.width || raster_->view().height != view.height ||
-      raster_->view().eye != view.eye || raster_->view().base != view.base || raster_->view().step_x != view.step_x ||
-      raster_->view().step_y != view.step_y || raster_->view().near != view.near) {
-    raster_ = std::make_unique<Rasterizer>(view, raster_options);
-  }
+  if (!raster_ || !raster_->matches(view, raster_options)) raster_ = std::make_unique<Rasterizer>(view, raster_options);
   raster_->clear();
   raster_->reset_counters();
   raster_->set_surface_program(program_.get());

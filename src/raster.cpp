@@ -169,6 +169,13 @@ Rasterizer::Rasterizer(const View& view, const RasterOptions& options)
 
 Rasterizer::~Rasterizer() = default;
 
+bool Rasterizer::matches(const View& v, const RasterOptions& o) const {
+  return v.width == view_.width && v.height == view_.height && v.eye == view_.eye && v.base == view_.base &&
+         v.step_x == view_.step_x && v.step_y == view_.step_y && v.near == view_.near && o.threads == options_.threads &&
+         o.cull_back_faces == options_.cull_back_faces && std::max(o.tile_size, 8) == options_.tile_size &&
+         o.near_floor == options_.near_floor && o.depth_test == options_.depth_test;
+}
+
 void Rasterizer::clear() {
   pending_.clear();
   pending_ids_.clear();
@@ -334,7 +341,7 @@ void Rasterizer::raster_tile(int tile, const Setup* setups, RasterCounters& coun
           // The bound encloses the surface, so its fragment is never behind the surface's
           // hit: a bound fragment that fails the test hides a surface that would fail it too.
           ++counters.surface_rays;
-          const SurfaceHit hit = program_->cast(s.id, x, y, depth[i], inv);
+          const SurfaceHit hit = program_->cast(s.id, x, y, inv);
           if (hit == SurfaceHit::BackCulled) ++counters.back_samples_culled;
           if (hit != SurfaceHit::Hit) return;
           ++counters.surface_hits;

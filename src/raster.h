@@ -104,8 +104,9 @@ enum class SurfaceHit : uint8_t { Miss, Hit, BackCulled };
 class SurfaceProgram {
  public:
   virtual ~SurfaceProgram() = default;
-  // stored_inv_w: the pixel's current 1/w (0: background); a hit at or behind it loses anyway.
-  virtual SurfaceHit cast(uint32_t id, int x, int y, double stored_inv_w, double& inv_w) const = 0;
+  // The whole ray is tested (a hit behind the stored sample still counts as a hit); the
+  // rasterizer's second depth test decides what is written.
+  virtual SurfaceHit cast(uint32_t id, int x, int y, double& inv_w) const = 0;
 };
 
 class Rasterizer {
@@ -119,6 +120,9 @@ class Rasterizer {
 
   const View& view() const { return view_; }
   const RasterOptions& options() const { return options_; }
+  // Whether this rasterizer renders `view` with `options` (so a renderer can keep it, with its
+  // buffers and thread arena, from frame to frame instead of building a new one).
+  bool matches(const View& view, const RasterOptions& options) const;
 
   // Empties the framebuffer (every pixel background, depth infinite) and drops pending
   // triangles. Counters are kept; reset_counters() zeroes them.

@@ -22,6 +22,17 @@ struct Comparison {
   std::string first_mismatch;
 };
 
+// A camera at `eye` looking at `at` (up: z, or y when looking along z).
+inline Camera camera_at(const Vec3& eye, const Vec3& at, double fov = 60.0, double near = 0.0) {
+  Camera c;
+  c.eye = eye;
+  c.look_at = at;
+  c.up = std::abs(glm::normalize(at - eye).z) > 0.99 ? Vec3(0, 1, 0) : Vec3(0, 0, 1);
+  c.vfov_deg = fov;
+  c.near = near;
+  return c;
+}
+
 // Brute-force ids with tie flags.
 inline void brute_reference(const Scene& scene, const View& view, std::vector<uint32_t>& ids,
                             std::vector<uint8_t>& tie) {

@@ -27,14 +27,7 @@
 namespace frontier {
 namespace {
 
-Camera camera_at(const Vec3& eye, const Vec3& at, double fov) {
-  Camera c;
-  c.eye = eye;
-  c.look_at = at;
-  c.up = std::abs(glm::normalize(at - eye).z) > 0.99 ? Vec3(0, 1, 0) : Vec3(0, 0, 1);
-  c.vfov_deg = fov;
-  return c;
-}
+using testing::camera_at;
 
 // Random triangles in [-1,1]^3, interpenetrating (so the tree must split), some large.
 PolygonSoup random_soup(std::mt19937_64& rng, int count, const Aabb* avoid = nullptr) {

@@ -32,14 +32,7 @@ void expect_matches_brute(const Scene& scene, const KdTree& tree, const View& vi
   }
 }
 
-Camera camera_at(const Vec3& eye, const Vec3& at, double fov = 60.0) {
-  Camera c;
-  c.eye = eye;
-  c.look_at = at;
-  c.up = std::abs(glm::normalize(at - eye).z) > 0.99 ? Vec3(0, 1, 0) : Vec3(0, 0, 1);
-  c.vfov_deg = fov;
-  return c;
-}
+using testing::camera_at;
 
 TEST(EngineRandom, TwoHundredScenesMatchBruteForce) {
   RecordProperty("methods", "ray walking; frustum casting with 2x2, 5x5 and 16x16 leaves: ids against brute force");

@@ -20,15 +20,7 @@ using testing::brute_reference;
 using testing::compare_ids;
 using testing::Comparison;
 
-Camera camera_at(const Vec3& eye, const Vec3& at, double fov, double near = 0.0) {
-  Camera c;
-  c.eye = eye;
-  c.look_at = at;
-  c.up = std::abs(glm::normalize(at - eye).z) > 0.99 ? Vec3(0, 1, 0) : Vec3(0, 0, 1);
-  c.vfov_deg = fov;
-  c.near = near;
-  return c;
-}
+using testing::camera_at;
 
 // Random triangles in [-1,1]^3; about one in eight is large (up to 3 units), so seen from
 // inside some cross the near plane and reach behind the eye.

@@ -361,6 +361,15 @@ Status MesaRenderer::check(const View& view, const std::vector<uint32_t>* order,
   return Status::ok();
 }
 
+void MesaRenderer::begin_pass(const View& view, const MesaOptions& options) const {
+  if (options.cull_back_faces) {
+    glEnable(GL_CULL_FACE);
+  } else {
+    glDisable(GL_CULL_FACE);
+  }
+  set_camera(view);
+}
+
 void MesaRenderer::set_camera(const View& view) const {
   // Depth range from the scene's bounds. A visible point p has view-axis depth
   // z >= |p - eye| / sqrt(1 + half_w² + half_h²) (the frustum's widest ray), so the distance
@@ -523,12 +532,7 @@ Result<MesaFrame> MesaRenderer::render(const View& view, const std::vector<uint3
   const Context& c = *context_;
   const size_t count = order != nullptr ? order->size() : triangle_count_;
   MesaFrame frame;
-  if (options.cull_back_faces) {
-    glEnable(GL_CULL_FACE);
-  } else {
-    glDisable(GL_CULL_FACE);
-  }
-  set_camera(view);
+  begin_pass(view, options);
 
   // Counting pass: every fragment rasterized, none written.
   glDisable(GL_LIGHTING);
@@ -609,12 +613,7 @@ Status MesaRenderer::ids(const View& view, std::vector<uint32_t>& ids, const std
   }
   make_current();
   const size_t count = order != nullptr ? order->size() : triangle_count_;
-  if (options.cull_back_faces) {
-    glEnable(GL_CULL_FACE);
-  } else {
-    glDisable(GL_CULL_FACE);
-  }
-  set_camera(view);
+  begin_pass(view, options);
   glDisable(GL_LIGHTING);
   glDisable(GL_COLOR_MATERIAL);
   glShadeModel(GL_FLAT);

@@ -127,6 +127,8 @@ class MesaRenderer {
   MesaRenderer() = default;
   void make_current() const;
   Status check(const View& view, const std::vector<uint32_t>* order, const MesaOptions& options) const;
+  // The state every pass shares (after make_current): culling and the camera.
+  void begin_pass(const View& view, const MesaOptions& options) const;
   void set_camera(const View& view) const;
   // Lights (after set_camera: positions go through the modelview); returns {used, dropped}.
   std::pair<int, int> set_lights(const MesaOptions& options) const;
