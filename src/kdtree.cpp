@@ -134,58 +134,73 @@ class KdBuilder {
     size_t left = 0, right = 0;
   };
 
-  Split best_split(const std::vector<Item>& items, const Aabb& box) const {
+  Split best_split(const std::vector<Item>& items, const Aabb& box) {
     Split best;
     const int bins = std::max(options_.bins, 2);
     const double area = box.surface_area();
-    std::vector<uint32_t> starts(bins), ends(bins);
+    const Vec3 e = box.extent();
     // Bin over the extent the items actually occupy (clustered items would otherwise share
     // one bin of the node's extent and never separate).
     Aabb occupied;
     for (const Item& it : items) occupied.extend(it.box);
+    std::array<double, 3> lo{}, width{}, per_width{};
+    std::array<bool, 3> binned{};
     for (int axis = 0; axis < 3; ++axis) {
-      const double lo = std::max(box.lo[axis], occupied.lo[axis]);
+      lo[axis] = std::max(box.lo[axis], occupied.lo[axis]);
       const double hi = std::min(box.hi[axis], occupied.hi[axis]);
-      const double width = (hi - lo) / bins;
-      if (!(width > 0.0)) continue;
-      std::fill(starts.begin(), starts.end(), 0);
-      std::fill(ends.begin(), ends.end(), 0);
-      for (const Item& it : items) {
-        const int s = std::clamp(static_cast<int>((it.box.lo[axis] - lo) / width), 0, bins - 1);
-        const int e = std::clamp(static_cast<int>((it.box.hi[axis] - lo) / width), 0, bins - 1);
-        ++starts[s];
-        ++ends[e];
+      width[axis] = (hi - lo[axis]) / bins;
+      binned[axis] = width[axis] > 0.0;
+      per_width[axis] = binned[axis] ? 1.0 / width[axis] : 0.0;
+    }
+    // Starts and ends per bin of all three axes, counted in one pass over the items.
+    counts_.assign(6 * static_cast<size_t>(bins), 0);
+    uint32_t* starts[3] = {counts_.data(), counts_.data() + bins, counts_.data() + 2 * bins};
+    uint32_t* ends[3] = {counts_.data() + 3 * bins, counts_.data() + 4 * bins, counts_.data() + 5 * bins};
+    for (const Item& it : items) {
+      for (int axis = 0; axis < 3; ++axis) {
+        if (!binned[axis]) continue;
+        // Bin counts only estimate the cost; the split itself sorts items by exact comparisons.
+        const int s = std::clamp(static_cast<int>((it.box.lo[axis] - lo[axis]) * per_width[axis]), 0, bins - 1);
+        const int t = std::clamp(static_cast<int>((it.box.hi[axis] - lo[axis]) * per_width[axis]), 0, bins - 1);
+        ++starts[axis][s];
+        ++ends[axis][t];
       }
+    }
+    const double n = static_cast<double>(items.size());
+    const double per_area = options_.intersection_cost / area;  // SAH: hit probability is area / node area
+    for (int axis = 0; axis < 3; ++axis) {
+      if (!binned[axis]) continue;
+      const double box_lo = box.lo[axis], box_hi = box.hi[axis];
+      const double min_empty = kMinEmptyFraction * (box_hi - box_lo);
+      // A side's surface area from its length on this axis: 2 (b c + length (b + c)) with b, c
+      // the node's extents on the other two axes.
+      const double bc = e[(axis + 1) % 3] * e[(axis + 2) % 3];
+      const double b_plus_c = e[(axis + 1) % 3] + e[(axis + 2) % 3];
+      auto side_area = [&](double length) { return 2.0 * (bc + length * b_plus_c); };
       // Cutting off the empty space beside the occupied extent.
-      for (const double pos : {lo, hi}) {
-        if (!(pos > box.lo[axis] && pos < box.hi[axis])) continue;
+      const double occ_hi = std::min(box.hi[axis], occupied.hi[axis]);
+      for (const double pos : {lo[axis], occ_hi}) {
+        if (!(pos > box_lo && pos < box_hi)) continue;
         // Only a real slab of empty space is worth a level (not the padding's sliver).
-        const double cut = pos == lo ? pos - box.lo[axis] : box.hi[axis] - pos;
-        if (cut < kMinEmptyFraction * (box.hi[axis] - box.lo[axis])) continue;
-        Aabb lbox = box, rbox = box;
-        lbox.hi[axis] = pos;
-        rbox.lo[axis] = pos;
-        const double n = static_cast<double>(items.size());
-        const double cost = (options_.traversal_cost +
-                             options_.intersection_cost * (pos == lo ? rbox : lbox).surface_area() / area * n) *
-                            (1.0 - options_.empty_bonus);
-        if (cost < best.cost) best = {axis, pos, cost, pos == lo ? 0 : items.size(), pos == lo ? items.size() : 0};
+        const double cut = pos == lo[axis] ? pos - box_lo : box_hi - pos;
+        if (cut < min_empty) continue;
+        const double kept = pos == lo[axis] ? side_area(box_hi - pos) : side_area(pos - box_lo);
+        const double cost =
+            (options_.traversal_cost + per_area * kept * n) * (1.0 - options_.empty_bonus);
+        if (cost < best.cost) {
+          best = {axis, pos, cost, pos == lo[axis] ? 0 : items.size(), pos == lo[axis] ? items.size() : 0};
+        }
       }
       size_t left = 0, right = items.size();
       for (int k = 1; k < bins; ++k) {
-        left += starts[k - 1];
-        right -= ends[k - 1];
-        const double pos = lo + k * width;
-        if (!(pos > box.lo[axis] && pos < box.hi[axis])) continue;
-        Aabb lbox = box, rbox = box;
-        lbox.hi[axis] = pos;
-        rbox.lo[axis] = pos;
+        left += starts[axis][k - 1];
+        right -= ends[axis][k - 1];
+        const double pos = lo[axis] + k * width[axis];
+        if (!(pos > box_lo && pos < box_hi)) continue;
         double cost = options_.traversal_cost +
-                      options_.intersection_cost *
-                          (lbox.surface_area() / area * static_cast<double>(left) +
-                           rbox.surface_area() / area * static_cast<double>(right));
-        if ((left == 0 && pos - box.lo[axis] >= kMinEmptyFraction * (box.hi[axis] - box.lo[axis])) ||
-            (right == 0 && box.hi[axis] - pos >= kMinEmptyFraction * (box.hi[axis] - box.lo[axis]))) {
+                      per_area * (side_area(pos - box_lo) * static_cast<double>(left) +
+                                  side_area(box_hi - pos) * static_cast<double>(right));
+        if ((left == 0 && pos - box_lo >= min_empty) || (right == 0 && box_hi - pos >= min_empty)) {
           cost *= 1.0 - options_.empty_bonus;
         }
         if (cost < best.cost) best = {axis, pos, cost, left, right};
@@ -218,13 +233,32 @@ class KdBuilder {
     Aabb lbox = box, rbox = box;
     lbox.hi[axis] = pos;
     rbox.lo[axis] = pos;
-    std::vector<Item> left, right;
-    left.reserve(split.left);
-    right.reserve(split.right);
+    // Item boxes lie inside `box`, so clipping one to a side changes only the split axis.
+    auto goes_left = [&](const Item& it) {
+      return it.box.lo[axis] < pos || (it.box.lo[axis] == pos && it.box.hi[axis] == pos);
+    };
+    auto goes_right = [&](const Item& it) {
+      return it.box.hi[axis] > pos || (it.box.lo[axis] == pos && it.box.hi[axis] == pos);
+    };
+    size_t nl = 0, nr = 0;
     for (const Item& it : items) {
-      const bool planar_on_split = it.box.lo[axis] == pos && it.box.hi[axis] == pos;
-      if (it.box.lo[axis] < pos || planar_on_split) left.push_back({it.prim, it.box.intersection(lbox)});
-      if (it.box.hi[axis] > pos || planar_on_split) right.push_back({it.prim, it.box.intersection(rbox)});
+      nl += goes_left(it) ? 1 : 0;
+      nr += goes_right(it) ? 1 : 0;
+    }
+    std::vector<Item> left(nl), right(nr);
+    Item* l = left.data();
+    Item* r = right.data();
+    for (const Item& it : items) {
+      if (goes_left(it)) {
+        *l = it;
+        l->box.hi[axis] = std::min(it.box.hi[axis], pos);
+        ++l;
+      }
+      if (goes_right(it)) {
+        *r = it;
+        r->box.lo[axis] = std::max(it.box.lo[axis], pos);
+        ++r;
+      }
     }
     // Guard against a split that separates nothing (all items straddle): make a leaf instead
     // of recursing forever.
@@ -334,6 +368,7 @@ class KdBuilder {
   KdTree& tree_;
   KdBuildOptions options_;
   uint32_t max_depth_ = 0;
+  std::vector<uint32_t> counts_;  // best_split's bin counts (a builder runs on one thread at a time)
 };
 
 KdTree KdTree::build(const Scene& scene, const KdBuildOptions& options) {
