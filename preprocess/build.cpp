@@ -107,6 +107,7 @@ struct Part {
   Aabb region;
   uint64_t count = 0;
   std::vector<Vec3> sample;
+  bool snapped = false;  // written by distribute(): triangles already on the lattice
 };
 
 // The upper levels of the tree planned from a sample: median splits on the longest axis.
@@ -378,6 +379,7 @@ class StoreBuilder {
       Part p;
       p.path = temp_->file(fmt::format("part-{}", next_file_++));
       p.region = n.region;
+      p.snapped = true;
       parts.push_back(std::move(p));
       writers.push_back(std::make_unique<SpillWriter>(buffer));
       if (Status s = writers.back()->open(parts.back().path); !s) return s;
@@ -394,7 +396,7 @@ class StoreBuilder {
     for (bool end = false; !end;) {
       batch = Scene{};
       if (Status s = in.read(batch, kBatch, end); !s) return s;
-      snap(batch);
+      if (!part.snapped) snap(batch);
       for (uint32_t i = 0; i < batch.size(); ++i) {
         Aabb b = batch.prim_bounds(i);
         if (b.empty()) continue;  // dropped by snapping
@@ -462,7 +464,7 @@ class StoreBuilder {
       for (bool end = false; !end;) {
         batch = Scene{};
         if (Status s = in.read(batch, kBatch, end); !s) return s;
-        snap(batch);
+        if (!part.snapped) snap(batch);  // snapping is idempotent: parts are snapped once
         for (uint32_t i = 0; i < batch.size(); ++i) scene.add_from(batch, i);
       }
     }

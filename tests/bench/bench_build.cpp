@@ -3,10 +3,13 @@
 // For each model: the I/O floor measured in the same run (read the input once from a cold page
 // cache + write and fsync a file of the store's size), then frontier-build's end-to-end time
 // (triangles/s and the ratio to the floor), store bytes per triangle, and the decode speed of
-// every page (pages read into memory first, so only decoding is timed). Prints Markdown.
+// every page (pages read into memory first, so only decoding is timed) and of refining every
+// decoded page into the subtree frontier-view builds when it pages the cell in. Prints Markdown.
 #include "preprocess/build.h"
 #include "src/progress.h"
+#include "src/kdtree.h"
 #include "src/store_model.h"
+#include "src/walkthrough.h"
 
 #include <CLI/CLI.hpp>
 #include <fmt/core.h>
@@ -66,6 +69,7 @@ double io_floor(const std::vector<std::string>& inputs, const std::string& outpu
 struct Decode {
   double seconds = 0.0;
   uint64_t payload_bytes = 0, primitives = 0;
+  double refine_seconds = 0.0;  // building every decoded page's subtree as the viewer does on page-in
 };
 
 Decode decode_all(const std::string& store) {
@@ -90,6 +94,22 @@ Decode decode_all(const std::string& store) {
     d.payload_bytes += p.payload.size();
   }
   d.seconds = since(t);
+  // Page-in's other half: each cell refined into a subtree with the walkthrough's options.
+  const WalkOptions walk;
+  KdBuildOptions refine;
+  refine.max_cell_prims = walk.cell_prims;
+  refine.traversal_cost = walk.cell_traversal_cost;
+  refine.forced_split_max_share = walk.cell_split_share;
+  for (size_t c = 0, k = 0; c < (*model)->cells().size(); ++c) {
+    const StoreCell& sc = (*model)->cells()[c];
+    if (sc.page == StoreCell::kNoPage) continue;
+    const store::OwnedPage& p = pages[k++];
+    if (!decode_cell(p.payload, static_cast<CellCodec>(p.codec), (*model)->info().lattice, cell)) continue;
+    refine.root = sc.bounds;
+    const auto r = std::chrono::steady_clock::now();
+    const KdTree subtree = KdTree::build(cell, refine);
+    d.refine_seconds += since(r);
+  }
   return d;
 }
 
@@ -111,7 +131,7 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
 
   std::printf("| model | codec | bits | triangles | build s | Mtri/s | I/O floor s | build/floor | MB | bytes/tri | "
-              "decode MB/s | decode Mtri/s |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+              "decode MB/s | decode Mtri/s | refine us/prim |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
   for (const std::string& model : models) {
     for (const std::string& codec : codecs) {
       for (const int b : bits) {
@@ -135,13 +155,14 @@ int main(int argc, char** argv) {
         const double floor_s = io_floor({model}, output, report->store_bytes);
         const Decode d = decode_all(output);
         const double tris = static_cast<double>(report->triangles);
-        std::printf("| %s | %s | %d | %.0f | %.2f | %.2f | %.2f | %.1f | %.1f | %.2f | %.0f | %.1f |\n",
+        std::printf("| %s | %s | %d | %.0f | %.2f | %.2f | %.2f | %.1f | %.1f | %.2f | %.0f | %.1f | %.2f |\n",
                     std::filesystem::path(model).filename().c_str(), codec.c_str(), codec == "raw" ? 0 : b, tris,
                     build_s, tris / build_s / 1e6, floor_s, build_s / floor_s,
                     static_cast<double>(report->store_bytes) / 1e6,
                     static_cast<double>(report->store_bytes) / std::max(tris, 1.0),
                     static_cast<double>(d.payload_bytes) / 1e6 / std::max(d.seconds, 1e-9),
-                    static_cast<double>(d.primitives) / 1e6 / std::max(d.seconds, 1e-9));
+                    static_cast<double>(d.primitives) / 1e6 / std::max(d.seconds, 1e-9),
+                    d.refine_seconds * 1e6 / std::max(static_cast<double>(d.primitives), 1.0));
         std::fprintf(stderr, "  %s: read %.1f s, partition %.1f s, build %.1f s, encode %.1f s; %llu parts\n",
                      model.c_str(), report->ingest_seconds, report->spill_seconds, report->build_seconds,
                      report->encode_seconds, static_cast<unsigned long long>(report->parts));

@@ -200,7 +200,8 @@ def section_build():
     out.append("`frontier-build` end to end on 2 threads (read, partition out of core, build, encode, write, fsync), "
                "against the I/O floor measured in the same run: reading the input once from a cold page cache plus "
                "writing and fsyncing a file of the store's size. Bytes per triangle are the store file's size over "
-               "the triangle count.\n")
+               "the triangle count. Decode and refine are the two halves of a page-in: decoding every page, then "
+               "building each decoded cell's own subtree with frontier-view's options (refine µs per primitive).\n")
     out.append(text.strip() + "\n")
     rows, header = markdown_rows(text)
     try:
