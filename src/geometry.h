@@ -68,22 +68,29 @@ struct Ray {
 // Slab test. On a hit returns true with the parametric interval [t0, t1] of the ray inside
 // the closed box (t0 may be negative when the origin is inside). Axis-parallel rays are
 // handled without NaN: a zero direction component tests the origin against the slab.
-inline bool ray_box_interval(const Ray& ray, const Aabb& box, double& t0, double& t1) {
+// The same for a ray given as origin, direction (of any length: t is in units of it) and its
+// component-wise inverse.
+inline bool ray_box_interval(const Vec3& origin, const Vec3& dir, const Vec3& inv_dir, const Aabb& box, double& t0,
+                             double& t1) {
   t0 = -kInfinity;
   t1 = kInfinity;
   for (int a = 0; a < 3; ++a) {
-    if (ray.dir[a] == 0.0) {
-      if (ray.origin[a] < box.lo[a] || ray.origin[a] > box.hi[a]) return false;
+    if (dir[a] == 0.0) {
+      if (origin[a] < box.lo[a] || origin[a] > box.hi[a]) return false;
       continue;
     }
-    double ta = (box.lo[a] - ray.origin[a]) * ray.inv_dir[a];
-    double tb = (box.hi[a] - ray.origin[a]) * ray.inv_dir[a];
+    double ta = (box.lo[a] - origin[a]) * inv_dir[a];
+    double tb = (box.hi[a] - origin[a]) * inv_dir[a];
     if (ta > tb) std::swap(ta, tb);
     t0 = std::max(t0, ta);
     t1 = std::min(t1, tb);
     if (t0 > t1) return false;
   }
   return true;
+}
+
+inline bool ray_box_interval(const Ray& ray, const Aabb& box, double& t0, double& t1) {
+  return ray_box_interval(ray.origin, ray.dir, ray.inv_dir, box, t0, t1);
 }
 
 // Distance from a point to the closest point of a box (0 when inside).

@@ -115,20 +115,8 @@ template <bool kWantNormal>
 bool cast_local(const ImplicitSurface& s, const Vec3& o, const Vec3& d, const Vec3& inv_dir, const Aabb& box,
                 double tmin, double tmax, bool back_sample_culling, SurfaceSample& sample) {
   sample = SurfaceSample{};
-  // Slab test (as ray_box_interval): an axis-parallel ray tests its origin against the slab.
-  double lo = -kInfinity, hi = kInfinity;
-  for (int axis = 0; axis < 3; ++axis) {
-    if (d[axis] == 0.0) {
-      if (o[axis] < box.lo[axis] || o[axis] > box.hi[axis]) return false;
-      continue;
-    }
-    double ta = (box.lo[axis] - o[axis]) * inv_dir[axis];
-    double tb = (box.hi[axis] - o[axis]) * inv_dir[axis];
-    if (ta > tb) std::swap(ta, tb);
-    lo = std::max(lo, ta);
-    hi = std::min(hi, tb);
-    if (lo > hi) return false;
-  }
+  double lo, hi;
+  if (!ray_box_interval(o, d, inv_dir, box, lo, hi)) return false;
   lo = std::max(lo, tmin);
   hi = std::min(hi, tmax);
   // A capped solid: the ray's interval inside every clip half-space, and the plane it enters by.
@@ -212,7 +200,7 @@ double whole_sphere_radius2(const ImplicitSurface& s, const Aabb& box) {
 
 bool cast_surface(const ImplicitSurface& s, const Ray& ray, double tmin, double tmax, bool back_sample_culling,
                   SurfaceSample& sample) {
-  return cast_local<true>(s, ray.origin - s.origin, ray.dir, 1.0 / ray.dir, cast_box(s), tmin, tmax,
+  return cast_local<true>(s, ray.origin - s.origin, ray.dir, ray.inv_dir, cast_box(s), tmin, tmax,
                           back_sample_culling, sample);
 }
 
@@ -727,7 +715,7 @@ ImrCounters ImrRenderer::render(const View& view) {
   // Deferred lighting of the visible samples, with the surfaces' analytic normals.
   t = std::chrono::steady_clock::now();
   const std::vector<uint32_t>& ids = raster_->ids();
-  const std::vector<double>& inverse_depth = raster_->inverse_depth();
+  const Rasterizer& raster = *raster_;  // flushed by ids()
   std::vector<Rgb> colors(view.pixels(), shader_->background());
   struct Local {
     Counters shading;
@@ -741,10 +729,8 @@ ImrCounters ImrRenderer::render(const View& view) {
         const size_t i = static_cast<size_t>(y) * static_cast<size_t>(view.width) + static_cast<size_t>(x);
         const uint32_t id = ids[i];
         if (id == kNoPrim) continue;
-        const Vec3 direction = view.direction(x, y);
-        const Ray ray(view.eye, direction);
-        // The rasterizer's depth (Rasterizer::depth): t along the ray from the pixel's 1/w.
-        const double depth = glm::length(direction) / inverse_depth[i];
+        const Ray ray = view.ray(x, y);
+        const double depth = raster.depth_at(x, y);
         const ImplicitSurface* s = surface_of_prim(id);
         ++l.lit;
         if (s == nullptr || (!s->capped && !s->textured)) {

@@ -143,12 +143,12 @@ class KdBuilder {
     // one bin of the node's extent and never separate).
     Aabb occupied;
     for (const Item& it : items) occupied.extend(it.box);
-    std::array<double, 3> lo{}, width{}, per_width{};
+    std::array<double, 3> lo{}, hi{}, width{}, per_width{};
     std::array<bool, 3> binned{};
     for (int axis = 0; axis < 3; ++axis) {
       lo[axis] = std::max(box.lo[axis], occupied.lo[axis]);
-      const double hi = std::min(box.hi[axis], occupied.hi[axis]);
-      width[axis] = (hi - lo[axis]) / bins;
+      hi[axis] = std::min(box.hi[axis], occupied.hi[axis]);
+      width[axis] = (hi[axis] - lo[axis]) / bins;
       binned[axis] = width[axis] > 0.0;
       per_width[axis] = binned[axis] ? 1.0 / width[axis] : 0.0;
     }
@@ -178,8 +178,7 @@ class KdBuilder {
       const double b_plus_c = e[(axis + 1) % 3] + e[(axis + 2) % 3];
       auto side_area = [&](double length) { return 2.0 * (bc + length * b_plus_c); };
       // Cutting off the empty space beside the occupied extent.
-      const double occ_hi = std::min(box.hi[axis], occupied.hi[axis]);
-      for (const double pos : {lo[axis], occ_hi}) {
+      for (const double pos : {lo[axis], hi[axis]}) {
         if (!(pos > box_lo && pos < box_hi)) continue;
         // Only a real slab of empty space is worth a level (not the padding's sliver).
         const double cut = pos == lo[axis] ? pos - box_lo : box_hi - pos;

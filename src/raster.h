@@ -169,6 +169,9 @@ class Rasterizer {
   std::vector<double> depth_image();
   // 1/w per pixel (w: distance along the view axis), 0 for background: what the depth test uses.
   const std::vector<double>& inverse_depth();
+  // depth(x, y) without the flush, for readers in parallel after ids() or inverse_depth().
+  // REQUIRES: nothing submitted since that call.
+  double depth_at(int x, int y) const;
 
   // Shading hook. REQUIRES: ids are indices into the scene `shader` was built for (as
   // rasterize_scene submits). Colours every pixel with shader.shade(id, view.ray(x, y), t) or
@@ -189,7 +192,6 @@ class Rasterizer {
  private:
   Setup set_up(const Triangle& triangle, uint32_t id, RasterCounters& counters) const;
   void raster_tile(int tile, const Setup* setups, RasterCounters& counters);
-  double depth_at(int x, int y) const;  // t of pixel (x, y) in the flushed framebuffer
 
   View view_;
   RasterOptions options_;

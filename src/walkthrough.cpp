@@ -65,6 +65,14 @@ nlohmann::json FrameReport::to_json() const {
   return j;
 }
 
+KdBuildOptions page_refine_options(const WalkOptions& options) {
+  KdBuildOptions build;
+  build.max_cell_prims = options.cell_prims;
+  build.traversal_cost = options.cell_traversal_cost;
+  build.forced_split_max_share = options.cell_split_share;
+  return build;
+}
+
 Result<std::unique_ptr<Walkthrough>> Walkthrough::open(const std::string& store_path, const WalkOptions& options) {
   if (options.width < 1 || options.height < 1) return Status::invalid_argument("image size must be at least 1x1");
   auto model = StoreModel::open(store_path);
@@ -74,9 +82,7 @@ Result<std::unique_ptr<Walkthrough>> Walkthrough::open(const std::string& store_
   w->model_ = std::move(*model);
   PagedWorldOptions po;
   po.budget_bytes = options.cache_bytes;
-  po.cell_build.max_cell_prims = options.cell_prims;
-  po.cell_build.traversal_cost = options.cell_traversal_cost;
-  po.cell_build.forced_split_max_share = options.cell_split_share;
+  po.cell_build = page_refine_options(options);
   w->world_ = std::make_unique<PagedWorld>(*w->model_, po);
   w->shader_ = std::make_unique<Shader>(w->world_->scene(), w->world_->tree());
   w->caster_ = std::make_unique<FrustumCaster>(w->world_->scene(), w->world_->tree(), *w->shader_, options.threads);

@@ -67,6 +67,10 @@ struct WalkOptions {
   bool cull_back_faces = false;  // rasterizing classes: drop back faces (closed solids only)
 };
 
+// How a paged-in store cell is refined into its own subtree under `options` (PagedWorld's
+// cell_build; bench_build times the same).
+KdBuildOptions page_refine_options(const WalkOptions& options);
+
 struct FrameReport {
   uint64_t frame = 0;
   Vec3 eye{0.0};                    // the camera's eye (walk mode: after collision)

@@ -67,6 +67,13 @@ bool parse_size(const std::string& text, int& w, int& h) {
   return true;
 }
 
+// Writes `j` (indented) to `path`: the --stats and --bsp-stats files.
+Status write_json(const std::string& path, const nlohmann::json& j) {
+  std::ofstream out(path);
+  out << j.dump(2) << "\n";
+  return out ? Status::ok() : Status::io_error(path + ": cannot write");
+}
+
 // A store file starts with the store magic (store/FORMAT.md); anything else is a model file.
 bool is_store(const std::string& path) {
   std::FILE* f = std::fopen(path.c_str(), "rb");
@@ -149,9 +156,7 @@ int render_culling_in_memory(const Options& o, const Scene& scene, const KdTree&
     j["height"] = view.height;
     j["primitives"] = scene.size();
     j["cells"] = tree.cells().size();
-    std::ofstream out(o.stats_path);
-    out << j.dump(2) << "\n";
-    if (!out) return fail(Status::io_error(o.stats_path + ": cannot write"));
+    if (Status st = write_json(o.stats_path, j); !st) return fail(st);
   }
   return 0;
 }
@@ -245,9 +250,7 @@ int render_immediate(const Options& o, const Scene& scene, const View& view) {
     stats["width"] = view.width;
     stats["height"] = view.height;
     stats["primitives"] = scene.size();
-    std::ofstream out(o.stats_path);
-    out << stats.dump(2) << "\n";
-    if (!out) return fail(Status::io_error(o.stats_path + ": cannot write"));
+    if (Status st = write_json(o.stats_path, stats); !st) return fail(st);
   }
   return 0;
 }
@@ -257,9 +260,7 @@ int render_bsp_frame(const Options& o, const Scene& scene, const View& view) {
   int aa = 0;
   if (!o.aa_text.empty()) {
     int n = 0, m = 0;
-    char x = 0;
-    if (std::sscanf(o.aa_text.c_str(), "%d%c%d", &n, &x, &m) != 3 || x != 'x' || n != m ||
-        (n != 1 && n != 2 && n != 4 && n != 8 && n != 16)) {
+    if (!parse_size(o.aa_text, n, m) || n != m || (n != 1 && n != 2 && n != 4 && n != 8 && n != 16)) {
       return bad_option("--aa " + o.aa_text + ": expected NxN with N in 1, 2, 4, 8, 16 (the paper's: 4x4)");
     }
     aa = n;
@@ -307,9 +308,7 @@ int render_bsp_frame(const Options& o, const Scene& scene, const View& view) {
                     {"traverse_ms", c.traverse_ms},        {"raster_ms", c.raster_ms},
                     {"ms", c.total_ms}};
     }
-    std::ofstream out(path);
-    out << j.dump(2) << "\n";
-    if (!out) return fail(Status::io_error(path + ": cannot write"));
+    if (Status st = write_json(path, j); !st) return fail(st);
   }
   return 0;
 }
@@ -375,9 +374,7 @@ int render_in_memory(const Options& o, bool store) {
     j["primitives"] = scene.size();
     j["cells"] = tree.cells().size();
     j["shadows_declared"] = !scene.lights.empty();
-    std::ofstream out(o.stats_path);
-    out << j.dump(2) << "\n";
-    if (!out) return fail(Status::io_error(o.stats_path + ": cannot write"));
+    if (Status st = write_json(o.stats_path, j); !st) return fail(st);
   }
   return 0;
 }
@@ -527,9 +524,7 @@ int store_frame(const Options& o, Walkthrough& walk, const Camera& camera) {
     if (Status s = write_ids(o.ids_path, walk.ids()); !s) return fail(s);
   }
   if (!o.stats_path.empty()) {
-    std::ofstream out(o.stats_path);
-    out << r.to_json().dump(2) << "\n";
-    if (!out) return fail(Status::io_error(o.stats_path + ": cannot write"));
+    if (Status st = write_json(o.stats_path, r.to_json()); !st) return fail(st);
   }
   return 0;
 }

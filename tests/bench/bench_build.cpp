@@ -7,7 +7,6 @@
 // decoded page into the subtree frontier-view builds when it pages the cell in. Prints Markdown.
 #include "preprocess/build.h"
 #include "src/progress.h"
-#include "src/kdtree.h"
 #include "src/store_model.h"
 #include "src/walkthrough.h"
 
@@ -79,33 +78,24 @@ Decode decode_all(const std::string& store) {
     std::fprintf(stderr, "%s\n", model.status().to_string().c_str());
     return d;
   }
-  std::vector<store::OwnedPage> pages;
+  std::vector<std::pair<const StoreCell*, store::OwnedPage>> pages;  // read first: decoding alone is timed
   for (const StoreCell& c : (*model)->cells()) {
     if (c.page == StoreCell::kNoPage) continue;
     auto p = (*model)->reader().read_page(c.page);
-    if (p) pages.push_back(std::move(*p));
+    if (p) pages.emplace_back(&c, std::move(*p));
   }
+  // Each page decoded, then refined into its subtree with the walkthrough's options (a
+  // page-in's two halves), timed apart.
+  KdBuildOptions refine = page_refine_options(WalkOptions{});
   Scene cell;
-  const auto t = std::chrono::steady_clock::now();
-  for (const store::OwnedPage& p : pages) {
-    if (decode_cell(p.payload, static_cast<CellCodec>(p.codec), (*model)->info().lattice, cell)) {
-      d.primitives += cell.size();
-    }
+  for (const auto& [c, p] : pages) {
     d.payload_bytes += p.payload.size();
-  }
-  d.seconds = since(t);
-  // Page-in's other half: each cell refined into a subtree with the walkthrough's options.
-  const WalkOptions walk;
-  KdBuildOptions refine;
-  refine.max_cell_prims = walk.cell_prims;
-  refine.traversal_cost = walk.cell_traversal_cost;
-  refine.forced_split_max_share = walk.cell_split_share;
-  for (size_t c = 0, k = 0; c < (*model)->cells().size(); ++c) {
-    const StoreCell& sc = (*model)->cells()[c];
-    if (sc.page == StoreCell::kNoPage) continue;
-    const store::OwnedPage& p = pages[k++];
-    if (!decode_cell(p.payload, static_cast<CellCodec>(p.codec), (*model)->info().lattice, cell)) continue;
-    refine.root = sc.bounds;
+    const auto t = std::chrono::steady_clock::now();
+    const bool decoded = static_cast<bool>(decode_cell(p.payload, static_cast<CellCodec>(p.codec), (*model)->info().lattice, cell));
+    d.seconds += since(t);
+    if (!decoded) continue;
+    d.primitives += cell.size();
+    refine.root = c->bounds;
     const auto r = std::chrono::steady_clock::now();
     const KdTree subtree = KdTree::build(cell, refine);
     d.refine_seconds += since(r);
