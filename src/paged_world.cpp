@@ -1,6 +1,7 @@
 // PagedWorld: grafting paged-in store cells into one tree and one scene (see paged_world.h).
 #include "src/paged_world.h"
 
+#include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/info.h>
 
@@ -41,7 +42,9 @@ struct PagedWorld::Graft {
 
 struct PagedWorld::Decoded {
   uint32_t cell = 0;
-  bool retry = false;  // the page left the cache between ready() and try_pin()
+  // Not decoded: the page left the cache between ready() and try_pin(), or the deadline came
+  // before its turn. Wanted again.
+  bool retry = false;
   Status status;
   Scene scene;
   KdTree tree;
@@ -191,7 +194,19 @@ bool PagedWorld::sync_impl(std::chrono::steady_clock::time_point deadline, bool 
     }
     const size_t e = std::min(ready.size(), b + batch);
     std::vector<Decoded> decoded(e - b);
-    tbb::parallel_for(size_t(0), decoded.size(), [&](size_t i) { decode(ready[b + i], decoded[i]); });
+    // One page per task, each starting only before the deadline: a frame overruns its paging
+    // share by at most one page's decode and build, not by a whole batch.
+    tbb::parallel_for(
+        tbb::blocked_range<size_t>(0, decoded.size(), 1), [&](const tbb::blocked_range<size_t>& range) {
+          for (size_t i = range.begin(); i < range.end(); ++i) {
+            if (i > 0 && std::chrono::steady_clock::now() >= deadline) {
+              decoded[i].cell = ready[b + i];
+              decoded[i].retry = true;
+            } else {
+              decode(ready[b + i], decoded[i]);
+            }
+          }
+        });
     for (Decoded& d : decoded) {
       if (d.retry) {
         later.push_back(d.cell);

@@ -39,6 +39,7 @@ nlohmann::json FrameReport::to_json() const {
                       {"samples", samples},
                       {"frame_ms", frame_ms},
                       {"stall_ms", stall_ms},
+                      {"floor_ms", floor_ms},
                       {"image_samples", image_samples},
                       {"pixels", pixels},
                       {"complete", complete},
@@ -212,7 +213,7 @@ FrameReport Walkthrough::frame(const Camera& camera) {
   // A pegged frame time covers everything: the job queue stops early by what reconstruction
   // and bookkeeping took lately (a running estimate), so the frame ends on time.
   const double work_ms = std::max(0.5 * budget.ms, budget.ms - finish_ms_);
-  const auto deadline = budget.ms > 0.0 ? start + std::chrono::duration_cast<Clock::duration>(
+  auto deadline = budget.ms > 0.0 ? start + std::chrono::duration_cast<Clock::duration>(
                                                       std::chrono::duration<double, std::milli>(work_ms))
                                         : Clock::time_point::max();
   FrameReport r;
@@ -230,6 +231,10 @@ FrameReport Walkthrough::frame(const Camera& camera) {
     r.continued = true;
   }
   last_camera_ = camera;
+  // The quality floor (WalkOptions::min_sampled) holds for moving frames under a time peg.
+  const uint64_t floor_samples =
+      budget.ms > 0.0 && !still ? static_cast<uint64_t>(options_.min_sampled * double(view_.pixels())) : 0;
+  bool overtime = false;
 
   // Paging in (decode + subtree build) is frame time too: with a pegged frame time it gets at
   // most a quarter of the frame while other work is queued; the rest waits for the next frame
@@ -248,12 +253,19 @@ FrameReport Walkthrough::frame(const Camera& camera) {
       caster_->resume_parked();
     }
     if (caster_->complete()) break;
-    if (Clock::now() >= deadline) break;
+    if (overtime && image_samples_ >= floor_samples) break;
+    if (Clock::now() >= deadline) {
+      if (overtime || image_samples_ >= floor_samples) break;
+      overtime = true;
+      deadline = start + std::chrono::duration_cast<Clock::duration>(
+                             std::chrono::duration<double, std::milli>((1.0 + kFloorMaxOvertime) * budget.ms));
+    }
     if (budget.samples > 0 && counters.samples >= budget.samples) break;
     if (caster_->runnable()) {
       FrameBudget slice;
       if (budget.ms > 0.0) slice.ms = std::max(0.01, std::chrono::duration<double, std::milli>(deadline - Clock::now()).count());
       if (budget.samples > 0) slice.samples = budget.samples - counters.samples;
+      if (overtime) slice.samples = floor_samples - image_samples_;
       const uint64_t before = counters.samples;
       caster_->run(slice, counters);
       image_samples_ += counters.samples - before;
@@ -307,6 +319,7 @@ FrameReport Walkthrough::frame(const Camera& camera) {
   r.parked = caster_->parked();
   report_paging(r);
   r.frame_ms = ms_since(start);
+  if (overtime) r.floor_ms = std::max(0.0, r.frame_ms - budget.ms);
   // The estimate follows increases at once and decreases slowly (a late frame costs more
   // than a few samples).
   const double finish = ms_since(finish_start);

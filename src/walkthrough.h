@@ -49,6 +49,12 @@ struct WalkOptions {
   bool sync_paging = false;
   bool oracle = false;         // compute oracle_cells (exact per-pixel rays) every frame
   bool shadows = true;         // deferred shadows when the camera stops (scene must declare lights)
+  // A quality floor under the frame-time peg: a moving frame that reaches its time with fewer
+  // than this share of its pixels sampled goes on until it has them, for at most
+  // kFloorMaxOvertime more frame times (paging, a burst of new cells or a descheduled worker
+  // would otherwise show a frame that is mostly reconstruction). 0: pure frame-time pegging
+  // (paper §5.5). The report's floor_ms says how long a frame ran past its peg for it.
+  double min_sampled = 0.5;
   // How a paged-in store cell is refined (page-in time is frame time). Measured on the 100 M
   // triangle building walk (tests/bench/bench_walk.sh): 16 / 4.0 / 0.75 build a cell in
   // 1.3 ms instead of 2.9 ms (8 / 2.0 / 1.0, the in-memory engine's), with 4.6 instead of 8.1
@@ -87,6 +93,7 @@ struct FrameReport {
   uint64_t samples = 0;             // pixels confirmed during this frame
   double frame_ms = 0.0;
   double stall_ms = 0.0;            // waiting for pages with nothing else to do
+  double floor_ms = 0.0;            // time past the pegged frame time spent reaching min_sampled
   // More.
   std::optional<uint64_t> oracle_cells;
   std::optional<double> oracle_ratio;  // cells_touched / oracle_cells
@@ -119,6 +126,8 @@ struct FrameReport {
 
 class Walkthrough {
  public:
+  // The longest a frame goes on past its pegged time for WalkOptions::min_sampled, in frame times.
+  static constexpr double kFloorMaxOvertime = 1.0;
   static Result<std::unique_ptr<Walkthrough>> open(const std::string& store_path, const WalkOptions& options);
   ~Walkthrough();
 

@@ -171,6 +171,7 @@ TEST(Walkthrough, ParkedWorkResumesAndConverges) {
   WalkOptions o = sync_options(97, 64u << 20);
   o.sync_paging = false;
   o.budget.ms = 1.0;
+  o.min_sampled = 0.0;  // pure frame-time pegging
   auto walk = Walkthrough::open(store, o);
   ASSERT_TRUE(walk.is_ok());
   Camera cam = *scene.camera;
@@ -191,6 +192,40 @@ TEST(Walkthrough, ParkedWorkResumesAndConverges) {
   testing::brute_reference(scene, (*walk)->view(), reference, tie);
   const auto cmp = testing::compare_ids(reference, tie, (*walk)->ids(), 97);
   EXPECT_EQ(cmp.mismatches, 0u) << cmp.first_mismatch;
+}
+
+// The sample floor under a frame-time peg far below what the view needs: with it every moving
+// frame of the building walk samples at least half its pixels or runs until the floor's cap;
+// without it no frame runs past its peg, and the frames sample less.
+TEST(Walkthrough, SampleFloorHoldsUnderATightFrameTimePeg) {
+  const std::vector<Camera> cams = walk_cameras();
+  ASSERT_FALSE(cams.empty());
+  auto walk_with = [&](double min_sampled) {
+    WalkOptions o = sync_options(128, 64u << 20);
+    o.sync_paging = false;
+    o.budget.ms = 0.5;
+    o.min_sampled = min_sampled;
+    auto walk = Walkthrough::open(building_walk().store, o);
+    EXPECT_TRUE(walk.is_ok()) << walk.status().to_string();
+    std::vector<FrameReport> out;
+    if (!walk.is_ok()) return out;
+    for (const Camera& cam : cams) out.push_back((*walk)->frame(cam));
+    return out;
+  };
+  const double cap_ms = (1.0 + Walkthrough::kFloorMaxOvertime) * 0.5;
+  uint64_t with = 0, without = 0, floored = 0;
+  for (const FrameReport& r : walk_with(0.5)) {
+    EXPECT_TRUE(2 * r.samples >= r.pixels || r.frame_ms >= cap_ms)
+        << "frame " << r.frame << ": " << r.samples << " of " << r.pixels << " samples in " << r.frame_ms << " ms";
+    with += r.samples;
+    floored += r.floor_ms > 0.0 ? 1 : 0;
+  }
+  for (const FrameReport& r : walk_with(0.0)) {
+    EXPECT_EQ(r.floor_ms, 0.0) << "frame " << r.frame;
+    without += r.samples;
+  }
+  EXPECT_GT(floored, 0u) << "a 0.5 ms peg was meant to need the floor";
+  EXPECT_GT(with, without);
 }
 
 // The building walk with a cache far smaller than the model: resident bytes never exceed the
@@ -474,7 +509,7 @@ TEST(ViewCommand, HeadlessWalkWritesTheReport) {
     EXPECT_EQ(j["frame"].get<int>(), frames);
     for (const char* k : {"cells_touched", "cells_paged_in", "bytes_read", "resident_bytes", "pinned_bytes",
                           "cache_budget", "primitives_tested", "ray_primitive_tests", "rays", "samples", "frame_ms",
-                          "stall_ms", "oracle_cells", "collision_queries"}) {
+                          "stall_ms", "floor_ms", "oracle_cells", "collision_queries"}) {
       EXPECT_TRUE(j.contains(k)) << k;
     }
     EXPECT_LE(j["resident_bytes"].get<uint64_t>(), j["cache_budget"].get<uint64_t>());

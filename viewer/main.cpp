@@ -119,6 +119,7 @@ struct Options {
   uint32_t cell_prims = 8, min_cell_prims = 0;
   int leaf_pixels = FrustumCaster::kDefaultLeafPixels;
   double frame_ms = 0.0, eye_height = 0.0, radius = 0.0;
+  double min_sampled = WalkOptions{}.min_sampled;
   uint64_t samples = 0;
   int width = 0, height = 0;
 };
@@ -449,7 +450,7 @@ int walk_headless(const Options& o, Walkthrough& walk, const Camera& start) {
   const size_t png_every = o.png_every > 0 ? size_t(o.png_every) : std::max<size_t>(1, frames / 4);
   std::vector<double> frame_ms;
   double samples = 0.0, ratio_sum = 0.0, ratio_max = 0.0;
-  uint64_t bytes_read = 0, ratio_frames = 0, errors = 0, resident_max = 0, complete = 0;
+  uint64_t bytes_read = 0, ratio_frames = 0, errors = 0, resident_max = 0, complete = 0, floor_frames = 0;
   Vec3 eye = path.front().eye;
   for (size_t f = 0; f < frames; ++f) {
     Camera cam = path[std::min(f, path.size() - 1)];
@@ -468,6 +469,7 @@ int walk_headless(const Options& o, Walkthrough& walk, const Camera& start) {
     errors = r.page_errors;
     resident_max = std::max(resident_max, r.resident_bytes);
     complete += r.complete ? 1 : 0;
+    floor_frames += r.floor_ms > 0.0 ? 1 : 0;
     if (r.oracle_ratio) {
       ratio_sum += *r.oracle_ratio;
       ratio_max = std::max(ratio_max, *r.oracle_ratio);
@@ -484,6 +486,7 @@ int walk_headless(const Options& o, Walkthrough& walk, const Camera& start) {
                             {"p95_frame_ms", percentile(frame_ms, 0.95)},
                             {"mean_samples", frames ? samples / double(frames) : 0.0},
                             {"complete_frames", complete},
+                            {"floor_frames", floor_frames},
                             {"peak_rss_mib", peak_rss_mib()},
                             {"max_resident_bytes", resident_max},
                             {"cache_budget", walk.world().budget_bytes()},
@@ -499,10 +502,10 @@ int walk_headless(const Options& o, Walkthrough& walk, const Camera& start) {
     if (!report) return fail(Status::io_error(o.report_path + ": cannot write"));
   }
   fmt::print(stderr, "frontier-view: {} frames; frame ms p50 {:.1f} p95 {:.1f}; mean samples {:.0f} of {}; "
-                     "{} complete; peak RSS {:.0f} MiB (resident at most {:.1f} of {:.1f} MiB); read {:.1f} MiB; "
+                     "{} complete; {} past the peg for the sample floor; peak RSS {:.0f} MiB (resident at most {:.1f} of {:.1f} MiB); read {:.1f} MiB; "
                      "{} page errors{}\n",
              frames, percentile(frame_ms, 0.5), percentile(frame_ms, 0.95), frames ? samples / double(frames) : 0.0,
-             walk.view().pixels(), complete, peak_rss_mib(), double(resident_max) / 1048576.0,
+             walk.view().pixels(), complete, floor_frames, peak_rss_mib(), double(resident_max) / 1048576.0,
              double(walk.world().budget_bytes()) / 1048576.0, double(bytes_read) / 1048576.0, errors,
              ratio_frames ? fmt::format("; touched/oracle mean {:.3f} max {:.3f}", ratio_sum / double(ratio_frames),
                                         ratio_max)
@@ -546,6 +549,10 @@ int main(int argc, char** argv) {
   auto* peg_samples = app.add_option("--samples", o.samples, "peg sample count: stop each frame after N samples")
                           ->check(CLI::PositiveNumber);
   peg_time->excludes(peg_samples);
+  app.add_option("--min-sampled", o.min_sampled,
+                 "store, with a pegged frame time: a moving frame goes on past its time (at most one more frame "
+                 "time) until this share of its pixels is sampled; 0 = pure frame-time pegging (default 0.5)")
+      ->check(CLI::Range(0.0, 1.0));
   // Stores.
   app.add_option("--cache", o.cache_text, "store: memory budget for paged cells, compressed and decoded (e.g. 512M, 2G)");
   app.add_option("--path", o.path_file, "store, headless: camera path (.cam, from frontier-gen path)");
@@ -626,6 +633,7 @@ int main(int argc, char** argv) {
   wo.threads = o.threads;
   wo.budget.ms = o.frame_ms;
   wo.budget.samples = o.samples;
+  wo.min_sampled = o.min_sampled;
   wo.sync_paging = o.sync_paging;
   wo.oracle = o.oracle;
   wo.shadows = !o.no_shadows;

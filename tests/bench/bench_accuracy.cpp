@@ -185,6 +185,7 @@ WalkOptions walk_options(const Options& o, const std::string& cache) {
   w.threads = o.threads;
   w.sync_paging = true;
   w.shadows = false;  // every image has the immediate effects only, pegged or complete
+  w.min_sampled = 0.0;  // the frame-time curve is of pure pegging
   w.cache_bytes = parse_byte_size(cache).value_or(512ull << 20);
   return w;
 }

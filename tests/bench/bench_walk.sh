@@ -108,4 +108,8 @@ if ratios:
     row("cells_touched / oracle_cells (max over sampled frames)", "<= 1.2", f"{max(ratios):.3f} (mean {sum(ratios)/len(ratios):.3f}, {len(ratios)} frames)", max(ratios) <= 1.2)
 print()
 print(f"bytes read per frame: mean {s['total_bytes_read']/len(frames)/1024:.1f} KiB, total {s['total_bytes_read']/2**20:.1f} MiB; mean samples {s['mean_samples']:.0f}")
+over = [f["floor_ms"] for f in frames if f.get("floor_ms", 0) > 0]
+low = min(f["samples"] / f["pixels"] for f in mov)
+print(f"sample floor (--min-sampled 0.5): {len(over)} frames ran past the peg" +
+      (f", by {min(over):.1f}-{max(over):.1f} ms" if over else "") + f"; fewest moving samples {low:.2f} of the pixels")
 EOF
