@@ -381,7 +381,8 @@ def section_walk():
                f"| {max(f['bytes_read'] for f in pegged) / 1024:.1f} KiB |")
     out.append("")
     out.append(f"Pegged walk summary: p50 {ps.get('p50_frame_ms', 0):.1f} ms, p95 {ps.get('p95_frame_ms', 0):.1f} ms; "
-               f"{half} of {len(moving)} frames sampled at least half of the pixels; peak RSS "
+               f"{half} of {len(moving)} frames sampled at least half of the pixels "
+               f"({ps.get('floor_frames', 0)} of them ran past the peg for the --min-sampled floor); peak RSS "
                f"{ps.get('peak_rss_mib', 0):.0f} MiB of a {ps.get('cache_budget', 0) / 1048576:.0f} MiB budget; "
                f"{ps.get('total_bytes_read', 0) / 1048576:.1f} MiB read in all.\n")
     if ratios:
