@@ -19,10 +19,14 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
+#include <deque>
 #include <filesystem>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <random>
+#include <thread>
 
 #include <stdlib.h>
 
@@ -95,6 +99,83 @@ class TempDir {
   std::string path_;
 };
 
+// Batches handed from a producer thread to the thread that consumes them, at most `depth` in
+// flight: reading and parsing overlap with what is done with the primitives (two cores do both
+// halves of a serial stage at once).
+template <typename T>
+class Handoff {
+ public:
+  explicit Handoff(size_t depth) : depth_(depth) {}
+
+  // Producer: false when the consumer gave up (stop producing).
+  bool push(T item) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    changed_.wait(lock, [&] { return queue_.size() < depth_ || cancelled_; });
+    if (cancelled_) return false;
+    queue_.push_back(std::move(item));
+    changed_.notify_all();
+    return true;
+  }
+  // Producer: no more items; `status` is why (ok: the input ended).
+  void close(Status status) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    status_ = std::move(status);
+    closed_ = true;
+    changed_.notify_all();
+  }
+  // Consumer: the next item, or false once the producer closed and everything was taken.
+  bool pop(T& item) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    changed_.wait(lock, [&] { return !queue_.empty() || closed_; });
+    if (queue_.empty()) return false;
+    item = std::move(queue_.front());
+    queue_.pop_front();
+    changed_.notify_all();
+    return true;
+  }
+  // Consumer: stop the producer (its next push returns false).
+  void cancel() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    cancelled_ = true;
+    changed_.notify_all();
+  }
+  // After pop() returned false: the producer's status.
+  Status status() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return status_;
+  }
+
+ private:
+  const size_t depth_;
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  std::deque<T> queue_;
+  bool closed_ = false, cancelled_ = false;
+  Status status_;
+};
+
+// Runs `produce(handoff)` on its own thread for the lifetime of this object; the destructor
+// cancels the handoff and joins (a consumer that returns early never leaves the thread behind).
+template <typename T>
+class Producer {
+ public:
+  template <typename F>
+  Producer(Handoff<T>& handoff, F produce)
+      : handoff_(handoff), thread_([&handoff, produce = std::move(produce)]() mutable {
+          handoff.close(produce(handoff));
+        }) {}
+  ~Producer() {
+    handoff_.cancel();
+    thread_.join();
+  }
+  Producer(const Producer&) = delete;
+  Producer& operator=(const Producer&) = delete;
+
+ private:
+  Handoff<T>& handoff_;
+  std::thread thread_;
+};
+
 // Zero-area triangles (after snapping to the lattice) are dropped like the readers drop them.
 bool zero_area(const Triangle& t) {
   const Vec3 n = glm::cross(t.v1 - t.v0, t.v2 - t.v0);
@@ -108,6 +189,12 @@ struct Part {
   uint64_t count = 0;
   std::vector<Vec3> sample;
   bool snapped = false;  // written by distribute(): triangles already on the lattice
+};
+
+// A batch of parsed input primitives and the input bytes it took.
+struct IngestBatch {
+  Scene scene;
+  uint64_t bytes = 0;
 };
 
 // The upper levels of the tree planned from a sample: median splits on the longest axis.
@@ -218,6 +305,41 @@ class StoreBuilder {
     }
     report_.input_bytes = total_bytes;
     Progress progress("read", "bytes", total_bytes, options_.quiet);
+    // This thread keeps the bounds and the sample and writes the spill file while the producer
+    // parses the next batch.
+    Handoff<IngestBatch> handoff(4);
+    Producer<IngestBatch> producer(handoff, [this](Handoff<IngestBatch>& to) { return read_inputs(to); });
+    IngestBatch item;
+    while (handoff.pop(item)) {
+      const Scene& batch = item.scene;
+      for (uint32_t i = 0; i < batch.size(); ++i) {
+        const Aabb b = batch.prim_bounds(i);
+        bounds_.extend(b);
+        sample.offer(b.center());
+        if (Status s = out.write(batch, i); !s) return s;
+      }
+      report_.degenerate_dropped += batch.degenerate_dropped;
+      report_.primitives += batch.size();
+      report_.triangles += batch.triangles.size();
+      progress.advance(item.bytes);
+    }
+    if (Status s = handoff.status(); !s) return s;
+    progress.finish();
+    if (Status s = out.close(); !s) return s;
+    report_.spill_bytes += out.bytes();
+    if (bounds_.empty()) bounds_ = Aabb(Vec3(-1.0), Vec3(1.0));  // an empty model still makes a store
+    if (options_.codec == CellCodec::Draco) lattice_ = Lattice::covering(bounds_, options_.quant_bits);
+    const double slack = options_.codec == CellCodec::Draco ? lattice_.step : 0.0;
+    root.region = KdTree::root_bounds(bounds_, slack);
+    root_region_ = root.region;
+    root.count = out.records();
+    root.sample = std::move(sample.points());
+    return Status::ok();
+  }
+
+  // Ingest's producer (its own thread): parses every input into batches of kBatch primitives
+  // (tessellated when asked) and records what the inputs declare (materials, lights, camera).
+  Status read_inputs(Handoff<IngestBatch>& to) {
     uint64_t source_base = 0;
     Scene batch;
     InputPrimitive prim;
@@ -245,18 +367,9 @@ class StoreBuilder {
             t.segments = options_.tessellate;
             batch = tessellate(batch, t);  // keeps the batch's degenerate count, adds its own
           }
-          for (uint32_t i = 0; i < batch.size(); ++i) {
-            const Aabb b = batch.prim_bounds(i);
-            bounds_.extend(b);
-            sample.offer(b.center());
-            if (Status s = out.write(batch, i); !s) return s;
-          }
-          report_.degenerate_dropped += batch.degenerate_dropped;
-          report_.primitives += batch.size();
-          report_.triangles += batch.triangles.size();
-          batch = Scene{};
           const uint64_t now = reader.bytes_read();
-          progress.advance(now - std::min(now, last_bytes));
+          if (!to.push({std::move(batch), now - std::min(now, last_bytes)})) return Status::ok();  // cancelled
+          batch = Scene{};
           last_bytes = now;
         }
         if (end) break;
@@ -272,17 +385,7 @@ class StoreBuilder {
       }
       info_.inputs.push_back(fs::path(in).filename().string());
     }
-    progress.finish();
-    if (Status s = out.close(); !s) return s;
-    report_.spill_bytes += out.bytes();
     report_.input_primitives = source_base;
-    if (bounds_.empty()) bounds_ = Aabb(Vec3(-1.0), Vec3(1.0));  // an empty model still makes a store
-    if (options_.codec == CellCodec::Draco) lattice_ = Lattice::covering(bounds_, options_.quant_bits);
-    const double slack = options_.codec == CellCodec::Draco ? lattice_.step : 0.0;
-    root.region = KdTree::root_bounds(bounds_, slack);
-    root_region_ = root.region;
-    root.count = out.records();
-    root.sample = std::move(sample.points());
     return Status::ok();
   }
 
@@ -386,17 +489,15 @@ class StoreBuilder {
       samples.emplace_back(0x5eed + parts.size());
     }
     const auto t = std::chrono::steady_clock::now();
-    SpillReader in;
-    if (Status s = in.open(part.path); !s) return s;
     const double scale = glm::length(part.region.extent());
     const double eps = 2e-9 * scale + 1e-12 * std::max(1.0, part.region.magnitude());
-    Scene batch;
     std::vector<int> stack;
     Progress progress("partition", "primitives", part.count, options_.quiet);
-    for (bool end = false; !end;) {
-      batch = Scene{};
-      if (Status s = in.read(batch, kBatch, end); !s) return s;
-      if (!part.snapped) snap(batch);
+    // The producer reads (and snaps) the next batch while this thread sorts one into the parts.
+    Handoff<Scene> handoff(4);
+    Producer<Scene> producer(handoff, [this, &part](Handoff<Scene>& to) { return read_part(part, to); });
+    Scene batch;
+    while (handoff.pop(batch)) {
       for (uint32_t i = 0; i < batch.size(); ++i) {
         Aabb b = batch.prim_bounds(i);
         if (b.empty()) continue;  // dropped by snapping
@@ -418,6 +519,7 @@ class StoreBuilder {
       }
       progress.advance(batch.size());
     }
+    if (Status s = handoff.status(); !s) return s;
     progress.finish();
     for (size_t k = 0; k < parts.size(); ++k) {
       if (Status s = writers[k]->close(); !s) return s;
@@ -426,6 +528,20 @@ class StoreBuilder {
       report_.spill_bytes += writers[k]->bytes();
     }
     report_.spill_seconds += seconds_since(t);
+    return Status::ok();
+  }
+
+  // Reads a part's spill file in batches into `to` (a producer), snapped to the lattice unless
+  // it already is.
+  Status read_part(const Part& part, Handoff<Scene>& to) {
+    SpillReader in;
+    if (Status s = in.open(part.path); !s) return s;
+    for (bool end = false; !end;) {
+      Scene batch;
+      if (Status s = in.read(batch, kBatch, end); !s) return s;
+      if (!part.snapped) snap(batch);  // snapping is idempotent: parts are snapped once
+      if (!to.push(std::move(batch))) return Status::ok();  // cancelled
+    }
     return Status::ok();
   }
 
@@ -458,15 +574,13 @@ class StoreBuilder {
     auto t = std::chrono::steady_clock::now();
     Scene scene;
     {
-      SpillReader in;
-      if (Status s = in.open(part.path); !s) return s;
+      Handoff<Scene> handoff(4);
+      Producer<Scene> producer(handoff, [this, &part](Handoff<Scene>& to) { return read_part(part, to); });
       Scene batch;
-      for (bool end = false; !end;) {
-        batch = Scene{};
-        if (Status s = in.read(batch, kBatch, end); !s) return s;
-        if (!part.snapped) snap(batch);  // snapping is idempotent: parts are snapped once
+      while (handoff.pop(batch)) {
         for (uint32_t i = 0; i < batch.size(); ++i) scene.add_from(batch, i);
       }
+      if (Status s = handoff.status(); !s) return s;
     }
     std::error_code ec;
     fs::remove(part.path, ec);

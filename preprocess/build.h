@@ -20,6 +20,11 @@
 // read before anything else, so a bad one fails the build at once; only its cells-and-portals
 // graph is kept (src/portals.h).
 //
+// Threads: the serial stages run as two halves on two threads: in ingest one thread parses
+// while the other keeps bounds and sample and writes the spill file; in the spill pass and
+// when a part is loaded one reads (and snaps) batches while the other sorts or gathers them.
+// At most four batches of 4096 primitives are in flight between the two.
+//
 // Memory: the spill buffers, one part in core (estimated at kBytesPerPrimitive per primitive)
 // and the pages being encoded. Temporary files live in a directory beside the output
 // (".NAME.build-XXXXXX"), removed at the end and on failure; a killed build may leave it
