@@ -214,8 +214,8 @@ FrameReport Walkthrough::frame(const Camera& camera) {
   // and bookkeeping took lately (a running estimate), so the frame ends on time.
   const double work_ms = std::max(0.5 * budget.ms, budget.ms - finish_ms_);
   auto deadline = budget.ms > 0.0 ? start + std::chrono::duration_cast<Clock::duration>(
-                                                      std::chrono::duration<double, std::milli>(work_ms))
-                                        : Clock::time_point::max();
+                                                std::chrono::duration<double, std::milli>(work_ms))
+                                  : Clock::time_point::max();
   FrameReport r;
   r.frame = frames_++;
   r.eye = camera.eye;

@@ -502,7 +502,8 @@ int walk_headless(const Options& o, Walkthrough& walk, const Camera& start) {
     if (!report) return fail(Status::io_error(o.report_path + ": cannot write"));
   }
   fmt::print(stderr, "frontier-view: {} frames; frame ms p50 {:.1f} p95 {:.1f}; mean samples {:.0f} of {}; "
-                     "{} complete; {} past the peg for the sample floor; peak RSS {:.0f} MiB (resident at most {:.1f} of {:.1f} MiB); read {:.1f} MiB; "
+                     "{} complete; {} past the peg for the sample floor; peak RSS {:.0f} MiB "
+                     "(resident at most {:.1f} of {:.1f} MiB); read {:.1f} MiB; "
                      "{} page errors{}\n",
              frames, percentile(frame_ms, 0.5), percentile(frame_ms, 0.95), frames ? samples / double(frames) : 0.0,
              walk.view().pixels(), complete, floor_frames, peak_rss_mib(), double(resident_max) / 1048576.0,
