@@ -554,8 +554,10 @@ void WindowSession::draw_text_panel(float scale) {
                        kWhite);
   }
   const double filled = r.pixels ? 100.0 * double(r.image_samples) / double(r.pixels) : 0.0;
-  lines.emplace_back(fmt::format("frame {}  {:.1f} ms (stall {:.1f})  samples {}  image {:.0f}%{}", r.frame,
-                                 r.frame_ms, r.stall_ms, grouped(r.samples), filled,
+  lines.emplace_back(fmt::format("frame {}  {:.1f} ms (stall {:.1f}{})  samples {}  image {:.0f}%{}", r.frame,
+                                 r.frame_ms, r.stall_ms,
+                                 r.floor_ms > 0.0 ? fmt::format(", sample floor +{:.1f}", r.floor_ms) : "",
+                                 grouped(r.samples), filled,
                                  r.complete ? (r.shadows ? " complete+shadows" : " complete") : ""),
                      kWhite);
   lines.emplace_back(fmt::format("cells touched {}  paged in {}  evicted {}  parked {}{}", grouped(r.cells_touched),
