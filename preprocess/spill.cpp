@@ -23,12 +23,14 @@ size_t geometry_doubles(PrimKind kind, bool normals) {
   return 0;
 }
 
-void put(std::vector<uint8_t>& out, const double* values, size_t n) {
-  const size_t at = out.size();
-  out.resize(at + n * sizeof(double));
-  std::memcpy(out.data() + at, values, n * sizeof(double));
+constexpr size_t kLargestRecord = kRecordHeader + 8 * (10 + 4 * Quadric::kMaxClipPlanes + 6 + 1);
+
+// Appends at `at` (the writer's buffer always has room for one more record).
+void put(uint8_t*& at, const double* values, size_t n) {
+  std::memcpy(at, values, n * sizeof(double));
+  at += n * sizeof(double);
 }
-void put(std::vector<uint8_t>& out, const Vec3& v) { put(out, &v.x, 3); }
+void put(uint8_t*& at, const Vec3& v) { put(at, &v.x, 3); }
 
 }  // namespace
 
@@ -40,70 +42,73 @@ Status SpillWriter::open(const std::string& path) {
   path_ = path;
   file_ = std::fopen(path.c_str(), "wb");
   if (file_ == nullptr) return Status::io_error(fmt::format("{}: cannot create: {}", path, std::strerror(errno)));
-  buffer_.reserve(buffer_bytes_ + 1024);
+  buffer_.resize(buffer_bytes_ + kLargestRecord);  // once: records are copied in, never appended
+  used_ = 0;
   return Status::ok();
 }
 
 Status SpillWriter::write(const Scene& scene, uint32_t i) {
   const PrimRef& p = scene.prims[i];
   const bool normals = p.kind == PrimKind::Triangle && !scene.triangle_normals.empty();
+  uint8_t* at = buffer_.data() + used_;
   const uint8_t head[4] = {static_cast<uint8_t>(p.kind), static_cast<uint8_t>(normals), 0, 0};
-  buffer_.insert(buffer_.end(), head, head + 4);
+  std::memcpy(at, head, 4);
   const uint32_t ids[2] = {p.source, p.material};
-  const auto* id_bytes = reinterpret_cast<const uint8_t*>(ids);
-  buffer_.insert(buffer_.end(), id_bytes, id_bytes + 8);
+  std::memcpy(at + 4, ids, 8);
+  at += kRecordHeader;
   switch (p.kind) {
     case PrimKind::Triangle: {
       const Triangle& t = scene.triangles[p.index];
-      put(buffer_, t.v0);
-      put(buffer_, t.v1);
-      put(buffer_, t.v2);
+      put(at, t.v0);
+      put(at, t.v1);
+      put(at, t.v2);
       if (normals) {
-        for (const Vec3& n : scene.triangle_normals[p.index]) put(buffer_, n);
+        for (const Vec3& n : scene.triangle_normals[p.index]) put(at, n);
       }
       break;
     }
     case PrimKind::Sphere: {
       const Sphere& s = scene.spheres[p.index];
-      put(buffer_, s.center);
-      put(buffer_, &s.radius, 1);
+      put(at, s.center);
+      put(at, &s.radius, 1);
       break;
     }
     case PrimKind::Box:
-      put(buffer_, scene.boxes[p.index].bounds.lo);
-      put(buffer_, scene.boxes[p.index].bounds.hi);
+      put(at, scene.boxes[p.index].bounds.lo);
+      put(at, scene.boxes[p.index].bounds.hi);
       break;
     case PrimKind::Cone: {
       const Cone& c = scene.cones[p.index];
-      put(buffer_, c.base);
-      put(buffer_, &c.base_radius, 1);
-      put(buffer_, c.apex);
-      put(buffer_, &c.apex_radius, 1);
+      put(at, c.base);
+      put(at, &c.base_radius, 1);
+      put(at, c.apex);
+      put(at, &c.apex_radius, 1);
       break;
     }
     case PrimKind::Quadric: {
       const Quadric& q = scene.quadrics[p.index];
-      put(buffer_, q.coeff.data(), 10);
-      for (const Vec4& c : q.clip) put(buffer_, &c.x, 4);
-      put(buffer_, q.bounds.lo);
-      put(buffer_, q.bounds.hi);
+      put(at, q.coeff.data(), 10);
+      for (const Vec4& c : q.clip) put(at, &c.x, 4);
+      put(at, q.bounds.lo);
+      put(at, q.bounds.hi);
       const double count = q.clip_count;
-      put(buffer_, &count, 1);
+      put(at, &count, 1);
       break;
     }
   }
+  used_ = static_cast<size_t>(at - buffer_.data());
   ++records_;
-  if (buffer_.size() >= buffer_bytes_) return flush();
+  if (used_ >= buffer_bytes_) return flush();
   return Status::ok();
 }
 
 Status SpillWriter::flush() {
-  if (buffer_.empty()) return Status::ok();
-  if (std::fwrite(buffer_.data(), 1, buffer_.size(), file_) != buffer_.size()) {
+  if (used_ == 0) return Status::ok();
+  if (std::fwrite(buffer_.data(), 1, used_, file_) != used_) {
     return Status::io_error(fmt::format("{}: write failed: {}", path_, std::strerror(errno)));
   }
-  bytes_ += buffer_.size();
-  buffer_.clear();
+  bytes_ += used_;
+  used_ = 0;
   return Status::ok();
 }
 
@@ -146,8 +151,7 @@ Status SpillReader::fill() {
 Status SpillReader::read(Scene& batch, size_t max, bool& end) {
   end = false;
   for (size_t n = 0; n < max; ++n) {
-    constexpr size_t kLargest = kRecordHeader + 8 * (10 + 4 * Quadric::kMaxClipPlanes + 6 + 1);
-    if (end_ - begin_ < kLargest && !eof_) {
+    if (end_ - begin_ < kLargestRecord && !eof_) {
       if (Status s = fill(); !s) return s;
     }
     if (begin_ == end_) {

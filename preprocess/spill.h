@@ -39,7 +39,8 @@ class SpillWriter {
   std::string path_;
   std::FILE* file_ = nullptr;
   size_t buffer_bytes_;
-  std::vector<uint8_t> buffer_;
+  std::vector<uint8_t> buffer_;  // buffer_bytes_ plus room for the largest record
+  size_t used_ = 0;
   uint64_t records_ = 0;
   uint64_t bytes_ = 0;
 };
