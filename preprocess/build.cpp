@@ -573,6 +573,9 @@ class StoreBuilder {
   Status build_in_core(const Part& part, uint32_t depth) {
     auto t = std::chrono::steady_clock::now();
     Scene scene;
+    // Sized once (most parts are triangles; untouched capacity costs address space only).
+    scene.prims.reserve(part.count);
+    scene.triangles.reserve(part.count);
     {
       Handoff<Scene> handoff(4);
       Producer<Scene> producer(handoff, [this, &part](Handoff<Scene>& to) { return read_part(part, to); });
