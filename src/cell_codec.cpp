@@ -111,9 +111,12 @@ class ByteWriter {
     out_.push_back(static_cast<uint8_t>(v));
   }
   void f64(double v) {
-    uint64_t bits = std::bit_cast<uint64_t>(v);
-    for (int i = 0; i < 8; ++i, bits >>= 8) out_.push_back(static_cast<uint8_t>(bits));
+    const uint64_t bits = std::bit_cast<uint64_t>(v);
+    uint8_t b[8];  // little endian, appended at once
+    for (int i = 0; i < 8; ++i) b[i] = static_cast<uint8_t>(bits >> (8 * i));
+    out_.insert(out_.end(), b, b + 8);
   }
+  void reserve(size_t more) { out_.reserve(out_.size() + more); }
   void vec3(const Vec3& v) { f64(v.x); f64(v.y); f64(v.z); }
   void bytes(const uint8_t* data, size_t n) { out_.insert(out_.end(), data, data + n); }
 
@@ -372,6 +375,9 @@ void write_raw_body(ByteWriter& w, const Scene& s) {
   w.varint(s.cones.size());
   w.varint(s.quadrics.size());
   w.u8(static_cast<uint8_t>((normals ? kRawHasNormals : 0) | (explicit_indices ? kRawExplicitIndices : 0)));
+  // Geometry dominates: 72 bytes a triangle (twice that with normals), a few per reference.
+  w.reserve(s.triangles.size() * (normals ? 144 : 72) + s.prims.size() * 8 + s.spheres.size() * 32 +
+            s.boxes.size() * 48 + s.cones.size() * 64 + s.quadrics.size() * 512);
 
   std::vector<uint32_t> kinds, sources, materials;
   for (const PrimRef& p : s.prims) {
