@@ -447,6 +447,35 @@ TEST(BuildCommand, BadInputAndOptionsFailCleanly) {
   EXPECT_FALSE(fs::exists(out));
 }
 
+// An error deep in the input, after the reader thread has handed over many batches: the build
+// still fails with the file and line, and leaves nothing behind.
+TEST(BuildStore, MalformedLineAfterManyBatchesFailsCleanly) {
+  const fs::path bad = scratch() / "late_bad.obj";
+  constexpr int kQuads = 20000;  // 40000 triangles: ten batches before the bad line
+  {
+    std::ofstream f(bad);
+    for (int i = 0; i < kQuads; ++i) {
+      f << "v " << i << " 0 0\nv " << i + 1 << " 0 0\nv " << i + 1 << " 1 0\nv " << i << " 1 0\n";
+      f << "f " << 4 * i + 1 << " " << 4 * i + 2 << " " << 4 * i + 3 << " " << 4 * i + 4 << "\n";
+    }
+    f << "f 1 2 nonsense\n";
+  }
+  const int bad_line = 5 * kQuads + 1;
+  for (const CellCodec codec : {CellCodec::Draco, CellCodec::Raw}) {
+    const std::string out = (scratch() / "late_bad.frontier").string();
+    auto report = build_store(options_for({bad.string()}, out, codec));
+    ASSERT_FALSE(report.is_ok());
+    const std::string message = report.status().message();
+    EXPECT_NE(message.find("late_bad.obj"), std::string::npos) << message;
+    EXPECT_NE(message.find("line " + std::to_string(bad_line)), std::string::npos) << message;
+    EXPECT_FALSE(fs::exists(out));
+    EXPECT_FALSE(fs::exists(out + ".tmp"));
+    for (const auto& e : fs::directory_iterator(scratch())) {
+      EXPECT_EQ(e.path().filename().string().find(".late_bad.frontier.build-"), std::string::npos) << e.path();
+    }
+  }
+}
+
 TEST(StoreCommand, InfoAndVerify) {
   const fs::path out = scratch() / "tool.frontier";
   ASSERT_TRUE(build_store(options_for({spd("tree")}, out.string(), CellCodec::Draco)).is_ok());
