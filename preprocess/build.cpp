@@ -217,8 +217,7 @@ class StoreBuilder {
     auto temp = TempDir::create(options_.output);
     if (!temp) return temp.status();
     temp_.emplace(std::move(*temp));
-    store::PosixFileSystem fsys;
-    auto writer = store::StoreWriter::create(fsys, options_.output);
+    auto writer = store::StoreWriter::create(fsys_, options_.output);
     if (!writer) return writer.status();
     writer_ = std::move(*writer);
     const int threads = options_.threads > 0 ? options_.threads : static_cast<int>(tbb::task_arena::automatic);
@@ -697,6 +696,9 @@ class StoreBuilder {
 
   const BuildOptions& options_;
   std::optional<TempDir> temp_;  // declared first: removed last, after the writer
+  // The writer's file system outlives the writer: a failed build's writer removes NAME.tmp
+  // through it when the builder is destroyed.
+  store::PosixFileSystem fsys_;
   std::unique_ptr<store::StoreWriter> writer_;
   std::optional<tbb::task_arena> arena_;
   std::optional<Progress> build_progress_;
