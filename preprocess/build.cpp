@@ -176,6 +176,19 @@ class Producer {
   std::thread thread_;
 };
 
+// Runs `produce(handoff)` on a reader thread and `consume(item)` here on each item it hands
+// over, so the two halves of a serial stage overlap. Returns the first error of either.
+template <typename T, typename Produce, typename Consume>
+Status overlap(Produce produce, Consume consume) {
+  Handoff<T> handoff(4);
+  Producer<T> producer(handoff, std::move(produce));
+  T item;
+  while (handoff.pop(item)) {
+    if (Status s = consume(item); !s) return s;
+  }
+  return handoff.status();
+}
+
 // Zero-area triangles (after snapping to the lattice) are dropped like the readers drop them.
 bool zero_area(const Triangle& t) {
   const Vec3 n = glm::cross(t.v1 - t.v0, t.v2 - t.v0);
@@ -306,23 +319,23 @@ class StoreBuilder {
     Progress progress("read", "bytes", total_bytes, options_.quiet);
     // This thread keeps the bounds and the sample and writes the spill file while the producer
     // parses the next batch.
-    Handoff<IngestBatch> handoff(4);
-    Producer<IngestBatch> producer(handoff, [this](Handoff<IngestBatch>& to) { return read_inputs(to); });
-    IngestBatch item;
-    while (handoff.pop(item)) {
-      const Scene& batch = item.scene;
-      for (uint32_t i = 0; i < batch.size(); ++i) {
-        const Aabb b = batch.prim_bounds(i);
-        bounds_.extend(b);
-        sample.offer(b.center());
-        if (Status s = out.write(batch, i); !s) return s;
-      }
-      report_.degenerate_dropped += batch.degenerate_dropped;
-      report_.primitives += batch.size();
-      report_.triangles += batch.triangles.size();
-      progress.advance(item.bytes);
-    }
-    if (Status s = handoff.status(); !s) return s;
+    const Status read = overlap<IngestBatch>(
+        [this](Handoff<IngestBatch>& to) { return read_inputs(to); },
+        [&](const IngestBatch& item) {
+          const Scene& batch = item.scene;
+          for (uint32_t i = 0; i < batch.size(); ++i) {
+            const Aabb b = batch.prim_bounds(i);
+            bounds_.extend(b);
+            sample.offer(b.center());
+            if (Status s = out.write(batch, i); !s) return s;
+          }
+          report_.degenerate_dropped += batch.degenerate_dropped;
+          report_.primitives += batch.size();
+          report_.triangles += batch.triangles.size();
+          progress.advance(item.bytes);
+          return Status::ok();
+        });
+    if (!read) return read;
     progress.finish();
     if (Status s = out.close(); !s) return s;
     report_.spill_bytes += out.bytes();
@@ -493,32 +506,32 @@ class StoreBuilder {
     std::vector<int> stack;
     Progress progress("partition", "primitives", part.count, options_.quiet);
     // The producer reads (and snaps) the next batch while this thread sorts one into the parts.
-    Handoff<Scene> handoff(4);
-    Producer<Scene> producer(handoff, [this, &part](Handoff<Scene>& to) { return read_part(part, to); });
-    Scene batch;
-    while (handoff.pop(batch)) {
-      for (uint32_t i = 0; i < batch.size(); ++i) {
-        Aabb b = batch.prim_bounds(i);
-        if (b.empty()) continue;  // dropped by snapping
-        b.lo -= Vec3(eps);
-        b.hi += Vec3(eps);
-        stack.assign(1, 0);
-        while (!stack.empty()) {
-          const PlanNode& n = nodes[static_cast<size_t>(stack.back())];
-          stack.pop_back();
-          if (n.axis < 0) {
-            const auto k = static_cast<size_t>(n.part);
-            if (Status s = writers[k]->write(batch, i); !s) return s;
-            samples[k].offer(b.center());
-            continue;
+    const Status sorted = overlap<Scene>(
+        [this, &part](Handoff<Scene>& to) { return read_part(part, to); },
+        [&](const Scene& batch) {
+          for (uint32_t i = 0; i < batch.size(); ++i) {
+            Aabb b = batch.prim_bounds(i);
+            if (b.empty()) continue;  // dropped by snapping
+            b.lo -= Vec3(eps);
+            b.hi += Vec3(eps);
+            stack.assign(1, 0);
+            while (!stack.empty()) {
+              const PlanNode& n = nodes[static_cast<size_t>(stack.back())];
+              stack.pop_back();
+              if (n.axis < 0) {
+                const auto k = static_cast<size_t>(n.part);
+                if (Status s = writers[k]->write(batch, i); !s) return s;
+                samples[k].offer(b.center());
+                continue;
+              }
+              if (b.lo[n.axis] <= n.split) stack.push_back(n.lower);
+              if (b.hi[n.axis] >= n.split) stack.push_back(n.upper);
+            }
           }
-          if (b.lo[n.axis] <= n.split) stack.push_back(n.lower);
-          if (b.hi[n.axis] >= n.split) stack.push_back(n.upper);
-        }
-      }
-      progress.advance(batch.size());
-    }
-    if (Status s = handoff.status(); !s) return s;
+          progress.advance(batch.size());
+          return Status::ok();
+        });
+    if (!sorted) return sorted;
     progress.finish();
     for (size_t k = 0; k < parts.size(); ++k) {
       if (Status s = writers[k]->close(); !s) return s;
@@ -575,15 +588,12 @@ class StoreBuilder {
     // Sized once (most parts are triangles; untouched capacity costs address space only).
     scene.prims.reserve(part.count);
     scene.triangles.reserve(part.count);
-    {
-      Handoff<Scene> handoff(4);
-      Producer<Scene> producer(handoff, [this, &part](Handoff<Scene>& to) { return read_part(part, to); });
-      Scene batch;
-      while (handoff.pop(batch)) {
-        for (uint32_t i = 0; i < batch.size(); ++i) scene.add_from(batch, i);
-      }
-      if (Status s = handoff.status(); !s) return s;
-    }
+    const Status loaded = overlap<Scene>([this, &part](Handoff<Scene>& to) { return read_part(part, to); },
+                                         [&](const Scene& batch) {
+                                           for (uint32_t i = 0; i < batch.size(); ++i) scene.add_from(batch, i);
+                                           return Status::ok();
+                                         });
+    if (!loaded) return loaded;
     std::error_code ec;
     fs::remove(part.path, ec);
     ++report_.parts;

@@ -47,7 +47,8 @@ int main(int argc, char** argv) {
   app.add_option("--quant-bits", options.quant_bits, "bits per axis of the global position lattice (Draco), 8..30")
       ->default_val(16);
   app.add_option("--cell-prims", options.cell_prims, "at most this many primitives per cell page")->default_val(1024);
-  app.add_option("--threads", options.threads, "threads that build and encode parts (0: all cores); reading and partitioning use a reader thread besides")->default_val(0);
+  app.add_option("--threads", options.threads, "threads that build and encode parts (0: all cores); reading and "
+                 "partitioning use a reader thread besides")->default_val(0);
   app.add_flag("--walkable", options.walkable,
                "add a sparse OpenVDB distance grid for walk-mode collision (also when a MODEL.json sidecar "
                "says \"walkable\": true)");

@@ -12,7 +12,7 @@ namespace {
 constexpr size_t kBufferBytes = 4 << 20;
 constexpr size_t kRecordHeader = 12;
 
-size_t geometry_doubles(PrimKind kind, bool normals) {
+constexpr size_t geometry_doubles(PrimKind kind, bool normals) {
   switch (kind) {
     case PrimKind::Triangle: return normals ? 18 : 9;
     case PrimKind::Sphere: return 4;
@@ -23,7 +23,7 @@ size_t geometry_doubles(PrimKind kind, bool normals) {
   return 0;
 }
 
-constexpr size_t kLargestRecord = kRecordHeader + 8 * (10 + 4 * Quadric::kMaxClipPlanes + 6 + 1);
+constexpr size_t kLargestRecord = kRecordHeader + 8 * geometry_doubles(PrimKind::Quadric, false);
 
 // Appends at `at` (the writer's buffer always has room for one more record).
 void put(uint8_t*& at, const double* values, size_t n) {
