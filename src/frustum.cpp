@@ -16,6 +16,10 @@ namespace {
 
 constexpr uint8_t kLeft = 1, kRight = 2, kBottom = 4, kTop = 8;  // straddle bits per plane
 constexpr uint32_t kMaxFillOccluders = 6;
+// Frusta of at least this many pixels try the plane fill (fill_plane).
+constexpr int kPlaneFillMinPixels = 16;
+// Triangles covering the frustum whose corners it tests (a quad's two halves both cover it).
+constexpr uint32_t kPlaneFillCandidates = 3;
 // Resolve a frustum in its cell when the elements' screen footprints add up to at most this
 // many times its pixel count; otherwise subdivide.
 constexpr double kResolveFactor = 2.0;
@@ -68,6 +72,12 @@ struct FrustumCaster::Incidence {
   int16_t x0, y0, x1, y1;  // screen rectangle of the bounds (whole view if unbounded)
   uint8_t straddle;        // planes (kLeft...) the bounds straddle; others: inside
   bool bounded;            // the rectangle is exact (bounds in front of the eye)
+  // Cone of directions from the eye that can reach the element (its bounding sphere): a unit
+  // ray direction d can hit it only if dot(d, axis) >= cos_reach. -2 (no cone) passes all.
+  // Exact for spheres, so a sphere's rectangle corners, a quarter of its area, are never
+  // tested; stored in float with a margin far above the rounding (see cell_entries).
+  float axis_x, axis_y, axis_z, cos_reach;
+  bool reaches(const Vec3& d) const { return d.x * axis_x + d.y * axis_y + d.z * axis_z >= cos_reach; }
 };
 
 struct FrustumCaster::CellCache {
@@ -416,9 +426,17 @@ bool FrustumCaster::in_front(const Aabb& box) const {
   return far_point >= view_.near - 1e-9 * (std::abs(far_point) + glm::length(c) + 1e-300);
 }
 
-void FrustumCaster::confirm(int x, int y, uint32_t prim, double t, const Ray& ray, Worker& w) {
+// A pixel strictly inside a job's rectangle belongs to that job alone (live jobs are never
+// nested and overlap only on the edges they share with siblings), so it is claimed without an
+// atomic read-modify-write, which cost a quarter of a frame on a wall of one element.
+bool FrustumCaster::claim(const Job& job, int x, int y, size_t i) const {
+  const bool interior = x > job.x0 && x < job.x1 && y > job.y0 && y < job.y1;
+  return interior ? buffer_->claim_exclusive(i) : buffer_->claim(i);
+}
+
+void FrustumCaster::confirm(const Job& job, int x, int y, uint32_t prim, double t, const Ray& ray, Worker& w) {
   const size_t i = static_cast<size_t>(y) * static_cast<size_t>(view_.width) + static_cast<size_t>(x);
-  if (!buffer_->claim(i)) return;
+  if (!claim(job, x, y, i)) return;
   const Rgb color = prim == kNoPrim ? shader_.background()
                     : shade_        ? shader_.shade(prim, ray, t, shadows_, w.counters)
                                     : Rgb{};
@@ -433,7 +451,7 @@ void FrustumCaster::fill_background(const Job& job, Worker& w) {
   for (int y = job.y0; y <= job.y1; ++y) {
     for (int x = job.x0; x <= job.x1; ++x) {
       const size_t i = static_cast<size_t>(y) * static_cast<size_t>(view_.width) + static_cast<size_t>(x);
-      if (!buffer_->claim(i)) continue;
+      if (!claim(job, x, y, i)) continue;
       buffer_->set(i, kNoPrim, kInfinity, bg);
       ++w.counters.samples;
       ++w.counters.rays;
@@ -462,7 +480,7 @@ void FrustumCaster::resolve_by_walking(const Job& job, Worker& w, bool from_next
       }
       bool parked = false;
       const RayHit hit = walk_pixel(x, y, ray, tmin, start, w, parked);
-      if (!parked) confirm(x, y, hit.prim, hit.t, ray, w);
+      if (!parked) confirm(job, x, y, hit.prim, hit.t, ray, w);
     }
   }
 }
@@ -503,7 +521,7 @@ RayHit FrustumCaster::walk_pixel(int x, int y, const Ray& ray, double tmin, int3
       w.counters.primitives_tested += entries.size();
       for (const Incidence& inc : entries) {
         if (inc.distance > std::min(best.t, tmax)) break;  // sorted: the rest lie farther
-        if (x < inc.x0 || x > inc.x1 || y < inc.y0 || y > inc.y1) continue;
+        if (x < inc.x0 || x > inc.x1 || y < inc.y0 || y > inc.y1 || !inc.reaches(ray.dir)) continue;
         const uint32_t prim = tree_.ref(inc.ref);
         offer_primitive(scene_, prim, ray, tmin, tmax, best, w.counters);
       }
@@ -613,6 +631,7 @@ void FrustumCaster::process(Job job, Worker& w) {
       n = job.inc_count;
     }
 
+    if (n > 0 && fill_plane(job, list, n, rays, tmins, w)) return;
     if (n > 0) {
       // Either resolve the frustum's pixels against this cell's elements now (cheap when the
       // elements' screen footprints are small against the frustum), or subdivide (§3.2).
@@ -684,8 +703,30 @@ const std::vector<FrustumCaster::Incidence>& FrustumCaster::cell_entries(int32_t
     PixelRect rect;
     const bool bounded = view_.project(box, rect.x0, rect.y0, rect.x1, rect.y1);
     if (!bounded) rect = {0, 0, view_.width - 1, view_.height - 1};
-    cache.entries.push_back({r, float(distance_to_box(view_.eye, box) * (1.0 - 1e-6)), int16_t(rect.x0),
-                             int16_t(rect.y0), int16_t(rect.x1), int16_t(rect.y1), 0, bounded});
+    // Nearest first by a lower bound on any hit: the bounds' distance, or for a sphere or cone
+    // the surface's own bound when larger (a box corner comes nearer than the surface by up
+    // to 0.73 r; in a heap of overlapping spheres that adds dozens of tests per pixel).
+    const double distance = std::max(distance_to_box(view_.eye, box), scene_.distance_bound(tree_.ref(r), view_.eye));
+    Incidence inc{r, float(distance * (1.0 - 1e-6)), int16_t(rect.x0), int16_t(rect.y0), int16_t(rect.x1),
+                  int16_t(rect.y1), 0, bounded, 0.0f, 0.0f, 0.0f, -2.0f};
+    Vec3 centre;
+    double radius;
+    if (scene_.bounding_sphere(tree_.ref(r), centre, radius)) {
+      const Vec3 v = centre - view_.eye;
+      const double d = glm::length(v);
+      if (d > radius * (1.0 + 1e-6)) {
+        // The axis and the cosine are rounded to float: the dot product moves by at most
+        // ~1e-7; a margin of 1e-6 (about a pixel's angle at 513² and 45°) keeps the cone
+        // conservative.
+        const Vec3 axis = v / d;
+        const double s = radius / d;
+        inc.axis_x = float(axis.x);
+        inc.axis_y = float(axis.y);
+        inc.axis_z = float(axis.z);
+        inc.cos_reach = float(std::sqrt(std::max(0.0, 1.0 - s * s)) - 1e-6);
+      }
+    }
+    cache.entries.push_back(inc);
   }
   std::sort(cache.entries.begin(), cache.entries.end(),
             [](const Incidence& a, const Incidence& b) { return a.distance < b.distance; });
@@ -756,12 +797,13 @@ size_t FrustumCaster::resolve_in_cell(const Job& job, const Incidence* list, uin
         }
         Pixel& p = w.open[slot];
         if (p.hit.t < distance) continue;  // already hit in front of these bounds
+        if (!list[j].reaches(p.ray.dir)) continue;
         offer_primitive(scene_, prim, p.ray, p.tmin, p.tmax, p.hit, w.counters);
       }
     }
   }
   for (const Pixel& p : w.open) {
-    if (p.hit.hit()) confirm(p.x, p.y, p.hit.prim, p.hit.t, p.ray, w);
+    if (p.hit.hit()) confirm(job, p.x, p.y, p.hit.prim, p.hit.t, p.ray, w);
   }
   if (npix > kExactOpenCount) return npix;
   size_t remaining = 0;
@@ -795,11 +837,12 @@ size_t FrustumCaster::resolve_pixel_major(const Job& job, const Incidence* list,
           tmax = exit.t + cell_slack(exit.t, slack_scale_);
           have_ray = true;
         }
+        if (!e.reaches(ray.dir)) continue;
         const uint32_t prim = tree_.ref(e.ref);
         offer_primitive(scene_, prim, ray, tmin, tmax, best, w.counters);
       }
       if (best.hit()) {
-        confirm(x, y, best.prim, best.t, ray, w);
+        confirm(job, x, y, best.prim, best.t, ray, w);
       } else {
         ++remaining;
       }
@@ -828,7 +871,7 @@ bool FrustumCaster::corners_and_fill(const Job& job, const Incidence* list, uint
       offer_primitive(scene_, prim, rays[k], tmins[k], tmax, best, w.counters);
     }
     hits[k] = best;
-    if (best.hit() && !buffer_->confirmed(i)) confirm(x, y, best.prim, best.t, rays[k], w);
+    if (best.hit() && !buffer_->confirmed(i)) confirm(job, x, y, best.prim, best.t, rays[k], w);
   }
   const bool same = hits[0].hit() && std::all_of(hits.begin(), hits.end(), [&](const RayHit& h) {
                       return h.prim == hits[0].prim;
@@ -845,6 +888,89 @@ bool FrustumCaster::corners_and_fill(const Job& job, const Incidence* list, uint
     }
   }
   if (!try_fill(job, list, n, hits[0].prim, w)) return false;
+  ++w.counters.frustum_fills;
+  return true;
+}
+
+// The §4 fill for a triangle that covers the whole frustum inside this cell, without a ray
+// per pixel. When the four corner rays hit the triangle's interior at points inside the cell,
+// every interior ray does too: the frustum's section with the triangle's plane is the convex
+// hull of the corner points, and the triangle and the cell are convex. Each pixel's distance
+// then follows from its direction alone (t = n·(v0 - eye) |D| / n·D), and only elements that
+// could come nearer than the farthest corner (distance along rays to a plane is convex over
+// the section, so the corners bound it) are tested per pixel. Returns false, having written
+// nothing, when no triangle qualifies or too many elements could occlude it.
+bool FrustumCaster::fill_plane(const Job& job, const Incidence* list, uint32_t n, const std::array<Ray, 4>& rays,
+                               const std::array<double, 4>& tmins, Worker& w) {
+  const int nx = job.x1 - job.x0 + 1, ny = job.y1 - job.y0 + 1;
+  if (nx * ny < kPlaneFillMinPixels) return false;
+  const Aabb& cell = tree_.cell(job.cell).bounds;
+  const double inset = 1e-12 * (cell.magnitude() + glm::length(cell.extent()));
+  // The corner rays' hits on a triangle, or false.
+  auto corners_inside = [&](const Triangle& tri, const Vec3& normal, double area2, double& max_t) {
+    max_t = 0.0;
+    for (size_t k = 0; k < 4; ++k) {
+      double t;
+      ++w.counters.ray_primitive_tests;
+      if (!intersect_triangle(tri, rays[k], tmins[k], kInfinity, t)) return false;
+      ++w.counters.hits;
+      const Vec3 p = rays[k].at(t);
+      for (int a = 0; a < 3; ++a) {
+        if (!(p[a] >= cell.lo[a] + inset && p[a] <= cell.hi[a] - inset)) return false;
+      }
+      // Strictly inside the triangle (a barycentric margin): interior rays never graze an edge.
+      const double b0 = glm::dot(glm::cross(tri.v1 - tri.v0, p - tri.v0), normal);
+      const double b1 = glm::dot(glm::cross(tri.v2 - tri.v1, p - tri.v1), normal);
+      const double b2 = glm::dot(glm::cross(tri.v0 - tri.v2, p - tri.v2), normal);
+      if (!(b0 > 1e-7 * area2 && b1 > 1e-7 * area2 && b2 > 1e-7 * area2)) return false;
+      max_t = std::max(max_t, t);
+    }
+    return true;
+  };
+  uint32_t candidate = n, tried = 0;
+  double max_t = 0.0;
+  for (uint32_t j = 0; j < n && candidate == n && tried < kPlaneFillCandidates; ++j) {
+    const Incidence& e = list[j];
+    if (e.x0 > job.x0 || e.x1 < job.x1 || e.y0 > job.y0 || e.y1 < job.y1) continue;
+    const PrimRef& ref = scene_.prims[tree_.ref(e.ref)];
+    if (ref.kind != PrimKind::Triangle) continue;
+    ++tried;
+    const Triangle& tri = scene_.triangles[ref.index];
+    const Vec3 normal = glm::cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
+    const double area2 = glm::dot(normal, normal);
+    if (area2 > 0.0 && corners_inside(tri, normal, area2, max_t)) candidate = j;
+  }
+  if (candidate == n) return false;
+  const uint32_t element = tree_.ref(list[candidate].ref);
+  const Triangle& tri = scene_.triangles[scene_.prims[element].index];
+  const Vec3 normal = glm::cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
+  w.occluders.clear();
+  for (uint32_t j = 0; j < n; ++j) {
+    if (j == candidate) continue;
+    const Incidence& e = list[j];
+    if (double(e.distance) > max_t) break;  // sorted nearest first
+    if (e.x1 < job.x0 || e.x0 > job.x1 || e.y1 < job.y0 || e.y0 > job.y1) continue;
+    w.occluders.push_back(tree_.ref(e.ref));
+    if (w.occluders.size() > kMaxFillOccluders) return false;
+  }
+  const double offset = glm::dot(normal, tri.v0 - view_.eye);
+  const bool need_ray = shade_ || !w.occluders.empty();
+  const size_t W = size_t(view_.width);
+  Ray ray;
+  for (int y = job.y0; y <= job.y1; ++y) {
+    for (int x = job.x0; x <= job.x1; ++x) {
+      const size_t i = size_t(y) * W + size_t(x);
+      if (buffer_->confirmed(i)) continue;
+      const Vec3 d = view_.direction(x, y);
+      RayHit best{element, offset * glm::length(d) / glm::dot(normal, d)};
+      if (need_ray) {
+        ray = Ray(view_.eye, d);
+        const double tmin = view_.tmin(ray);
+        for (uint32_t prim : w.occluders) offer_primitive(scene_, prim, ray, tmin, kInfinity, best, w.counters);
+      }
+      confirm(job, x, y, best.prim, best.t, ray, w);
+    }
+  }
   ++w.counters.frustum_fills;
   return true;
 }
@@ -895,14 +1021,14 @@ bool FrustumCaster::try_fill(const Job& job, const Incidence* list, uint32_t n, 
         // The element misses this ray inside the cell: walk it like a 2×2 ray.
         bool parked = false;
         const RayHit hit = walk_pixel(x, y, ray, tmin, job.cell, w, parked);
-        if (!parked) confirm(x, y, hit.prim, hit.t, ray, w);
+        if (!parked) confirm(job, x, y, hit.prim, hit.t, ray, w);
         continue;
       }
       RayHit best{element, te};
       for (uint32_t prim : w.occluders) {
         offer_primitive(scene_, prim, ray, tmin, kInfinity, best, w.counters);
       }
-      confirm(x, y, best.prim, best.t, ray, w);
+      confirm(job, x, y, best.prim, best.t, ray, w);
     }
   }
   return true;

@@ -122,8 +122,11 @@ class FrustumCaster {
                         const std::array<double, 4>& tmins, Worker& w);
   void fill_background(const Job& job, Worker& w);
   bool try_fill(const Job& job, const Incidence* list, uint32_t n, uint32_t element, Worker& w);
+  bool fill_plane(const Job& job, const Incidence* list, uint32_t n, const std::array<Ray, 4>& rays,
+                  const std::array<double, 4>& tmins, Worker& w);
   void split(const Job& job, const Incidence* list, uint32_t n, Worker& w);
-  void confirm(int x, int y, uint32_t prim, double t, const Ray& ray, Worker& w);
+  bool claim(const Job& job, int x, int y, size_t i) const;
+  void confirm(const Job& job, int x, int y, uint32_t prim, double t, const Ray& ray, Worker& w);
   void finish_level();
   Worker& current_worker();
   void plan_anchors(int width, int height);

@@ -343,6 +343,22 @@ Aabb bounds_of(const Sphere& s) {
 
 Aabb bounds_of(const Box& b) { return b.bounds; }
 
+double distance_bound(const Sphere& s, const Vec3& p) {
+  const double centre = glm::length(p - s.center), r = std::abs(s.radius);
+  return std::max(0.0, centre - r - 1e-9 * (centre + r));
+}
+
+// Every surface point lies within the larger radius of the axis segment.
+double distance_bound(const Cone& c, const Vec3& p) {
+  const Vec3 axis = c.apex - c.base;
+  const double len2 = glm::dot(axis, axis);
+  const double s = len2 > 0.0 ? std::clamp(glm::dot(p - c.base, axis) / len2, 0.0, 1.0) : 0.0;
+  const double to_axis = glm::length(p - (c.base + s * axis));
+  const double r = std::max(std::abs(c.base_radius), std::abs(c.apex_radius));
+  const double scale = glm::length(p - c.base) + std::sqrt(len2) + r;
+  return std::max(0.0, to_axis - r - 1e-9 * scale);
+}
+
 Aabb bounds_of(const Cone& c) {
   const Vec3 u = cone_frame(c).axis;
   const Vec3 e0 = disc_extent(u, std::abs(c.base_radius));

@@ -63,6 +63,13 @@ Aabb bounds_of(const Box& b);
 Aabb bounds_of(const Cone& c);
 Aabb bounds_of(const Quadric& q);
 
+// A lower bound on the distance from p to any point of the surface (0 when p may lie on or
+// inside it), slightly conservative against rounding. Together with the distance to the
+// bounds it orders and cuts per-pixel tests (a hit at distance t from p needs bound <= t), so
+// it must never exceed the true distance.
+double distance_bound(const Sphere& s, const Vec3& p);
+double distance_bound(const Cone& c, const Vec3& p);
+
 // Unit geometric normal at surface point p (for shading). Callers flip it to face the viewer.
 Vec3 normal_of(const Triangle& tri, const Vec3& p);
 Vec3 normal_of(const Sphere& s, const Vec3& p);

@@ -69,7 +69,7 @@ Counters Renderer::render(const View& view, const RenderOptions& options, Sample
                                    ? brute_force_hit(scene_, ray, tmin, c)
                                    : cast_ray(scene_, tree_, ray, tmin, c, &marks_);
             const size_t i = static_cast<size_t>(y) * static_cast<size_t>(view.width) + static_cast<size_t>(x);
-            buffer.claim(i);
+            buffer.claim_exclusive(i);  // the blocks partition the image
             const Rgb color = options.shade ? shader_.shade(hit.prim, ray, hit.t, options.shadows, c) : Rgb{};
             buffer.set(i, hit.prim, hit.t, color);
             ++c.rays;

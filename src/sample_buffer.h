@@ -39,6 +39,13 @@ class SampleBuffer {
     }
     return false;
   }
+  // The same for a caller that no other thread can race on pixel i in this frame (no atomic
+  // read-modify-write).
+  bool claim_exclusive(size_t i) {
+    if (stamp_[i].load(std::memory_order_relaxed) == frame_) return false;
+    stamp_[i].store(frame_, std::memory_order_relaxed);
+    return true;
+  }
   void set(size_t i, uint32_t prim, double t, Rgb color) {
     prim_[i] = prim;
     t_[i] = t;

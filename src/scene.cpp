@@ -33,6 +33,33 @@ bool Scene::intersect(uint32_t i, const Ray& ray, double tmin, double tmax, doub
   return false;
 }
 
+double Scene::distance_bound(uint32_t i, const Vec3& p) const {
+  const PrimRef& r = prims[i];
+  switch (r.kind) {
+    case PrimKind::Sphere: return frontier::distance_bound(spheres[r.index], p);
+    case PrimKind::Cone: return frontier::distance_bound(cones[r.index], p);
+    default: return 0.0;
+  }
+}
+
+bool Scene::bounding_sphere(uint32_t i, Vec3& centre, double& radius) const {
+  const PrimRef& r = prims[i];
+  if (r.kind == PrimKind::Sphere) {
+    centre = spheres[r.index].center;
+    radius = std::abs(spheres[r.index].radius);
+    return true;
+  }
+  if (r.kind == PrimKind::Cone) {
+    const Cone& c = cones[r.index];
+    centre = 0.5 * (c.base + c.apex);
+    const double half = 0.5 * glm::length(c.apex - c.base);
+    const double rmax = std::max(std::abs(c.base_radius), std::abs(c.apex_radius));
+    radius = std::sqrt(half * half + rmax * rmax);
+    return true;
+  }
+  return false;
+}
+
 Vec3 Scene::shading_normal(uint32_t i, const Vec3& hit, const Ray& ray) const {
   const PrimRef& p = prims[i];
   Vec3 n{0.0, 0.0, 1.0};

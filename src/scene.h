@@ -72,6 +72,12 @@ struct Scene {
   Aabb prim_bounds(uint32_t i) const;
   Aabb bounds() const;
   bool intersect(uint32_t i, const Ray& ray, double tmin, double tmax, double& t) const;
+  // A lower bound on the distance from p to primitive i's surface beyond what its bounds give
+  // (spheres and cones; 0 for the others). Never more than the true distance.
+  double distance_bound(uint32_t i, const Vec3& p) const;
+  // A sphere enclosing primitive i's surface, when one tighter than its bounds' is cheap to
+  // give (spheres: the sphere itself; cones: around the axis midpoint). False for the others.
+  bool bounding_sphere(uint32_t i, Vec3& centre, double& radius) const;
   // Unit normal at the hit point p on primitive i, facing against ray.dir (shading normal when
   // the primitive has one).
   Vec3 shading_normal(uint32_t i, const Vec3& p, const Ray& ray) const;

@@ -193,6 +193,54 @@ TEST(EngineHardCases, FarFromOriginRendersTheSameIds) {
   EXPECT_EQ(compare_ids(ref, tie, ids, 65).mismatches, 0u);
 }
 
+// Walls and floors that cover whole frusta are filled without a ray per pixel (fill_plane):
+// a floor of two triangles, a wall, and spheres, cones and small triangles standing on and in
+// front of them (occluders, some within a hair of the floor), seen from high, from a grazing
+// eye just above the floor, from below it, and all of it moved 1e6 from the origin.
+TEST(EngineHardCases, FilledFloorsAndWallsMatchBruteForce) {
+  RecordProperty("methods", "frustum casting with plane fills, ray walking: ids against brute force; fills counted");
+  std::mt19937_64 rng(31);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (const Vec3& offset : {Vec3(0.0), Vec3(1e6, -1e6, 1e6)}) {
+    Scene scene;
+    scene.materials.push_back({});
+    uint32_t source = 0;
+    auto quad = [&](const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
+      scene.add_triangle({a, b, c}, source, 0);
+      scene.add_triangle({a, c, d}, source++, 0);
+    };
+    quad(Vec3(-8, -8, 0), Vec3(8, -8, 0), Vec3(8, 8, 0), Vec3(-8, 8, 0));      // floor
+    quad(Vec3(-8, 6, 0), Vec3(8, 6, 0), Vec3(8, 6, 4), Vec3(-8, 6, 4));        // wall
+    for (int i = 0; i < 40; ++i) {
+      const Vec3 c(4.0 * u(rng), 4.0 * u(rng), 0.0);
+      const double r = 0.1 + 0.3 * std::abs(u(rng));
+      switch (i % 4) {
+        case 0: scene.add_sphere({c + Vec3(0, 0, r), r}, source++, 0); break;             // touching
+        case 1: scene.add_sphere({c + Vec3(0, 0, r + 1e-9), r}, source++, 0); break;      // a hair above
+        case 2: scene.add_cone({c, r, c + Vec3(0, 0, 1.5), 0.5 * r}, source++, 0); break;
+        default: scene.add_triangle({c + Vec3(0, 0, 0.5), c + Vec3(r, 0, 0.8), c + Vec3(0, r, 1.2)}, source++, 0);
+      }
+    }
+    scene.input_primitives = source;
+    scene.translate(offset);
+    const KdTree tree = KdTree::build(scene, {});
+    const Vec3 eyes[] = {Vec3(-6, -7, 5), Vec3(-7, -7, 1e-3), Vec3(0.3, -7.5, 0.05), Vec3(2, -6, -2)};
+    const Vec3 ats[] = {Vec3(0, 0, 0), Vec3(5, 5, 0.2), Vec3(0.2, 5, 0.5), Vec3(0, 2, 1)};
+    uint64_t fills = 0;
+    for (size_t k = 0; k < 4; ++k) {
+      const View view(camera_at(eyes[k] + offset, ats[k] + offset, 60.0), 97, 89);
+      expect_matches_brute(scene, tree, view, "floor view " + std::to_string(k) + (offset.x != 0.0 ? " far" : ""));
+      Renderer renderer(scene, tree, 2);
+      SampleBuffer buffer;
+      RenderOptions options;
+      options.method = Method::Frustum;
+      options.shade = false;
+      fills += renderer.render(view, options, buffer).frustum_fills;
+    }
+    EXPECT_GT(fills, 20u) << "the floor and wall should fill whole frusta";
+  }
+}
+
 // A closed UV sphere of triangles: no background pixel may appear inside its silhouette.
 TEST(EngineHardCases, ClosedTessellatedSphereLeaksNothing) {
   RecordProperty("methods", "frustum casting, ray walking: no background pixel inside the silhouette, 100 directions");

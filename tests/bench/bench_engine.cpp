@@ -55,6 +55,7 @@ int main(int argc, char** argv) {
   int threads = 2, repeats = 3;
   bool brute = false, frustum_only = false;
   uint32_t min_cell = 0;
+  KdBuildOptions build;
   std::vector<int> leaves = {FrustumCaster::kDefaultLeafPixels};
   app.add_option("scenes", scenes, "NFF/PLY/OBJ/OFF files")->required();
   app.add_option("--sizes", sizes, "square image sizes");
@@ -63,6 +64,9 @@ int main(int argc, char** argv) {
   app.add_flag("--brute", brute, "also run brute force at the smallest size");
   app.add_option("--leaf-pixels", leaves, "frustum leaf sizes to measure (one row each)");
   app.add_option("--min-cell-prims", min_cell, "k-d tree: cells at or below this size never split");
+  app.add_option("--max-cell-prims", build.max_cell_prims, "k-d tree: cells above this size split even if SAH prefers a leaf");
+  app.add_option("--traversal-cost", build.traversal_cost, "k-d tree: SAH cost of a cell step against one ray-primitive test");
+  app.add_option("--empty-bonus", build.empty_bonus, "k-d tree: SAH discount for cutting off empty space");
   app.add_flag("--frustum-only", frustum_only, "only frustum casting (for profiling)");
   CLI11_PARSE(app, argc, argv);
 
@@ -74,7 +78,6 @@ int main(int argc, char** argv) {
       fmt::print(stderr, "bench_engine: {}\n", s.to_string());
       return 1;
     }
-    KdBuildOptions build;
     build.min_cell_prims = min_cell;
     const KdTree tree = KdTree::build(scene, build);
     const Camera camera = scene.camera ? *scene.camera : automatic_camera(scene.bounds());
