@@ -10,6 +10,11 @@
 //   straddles both planes of an axis is never tested against that axis again in descendants;
 // - four corner rays hitting the same nearest element fill the frustum (§4) — here checked per
 //   pixel against that element and the few elements that could be nearer, so it stays exact;
+//   for a triangle (a floor, a wall) whose interior holds all four corner hits inside the cell,
+//   every pixel takes its distance from the plane without a ray of its own (fill_plane);
+// - per frame, each cell's elements carry a screen rectangle, a lower bound on their distance
+//   and the cone of eye directions that can reach them (exact for spheres), so a pixel tests
+//   only elements it can hit, nearest first, and stops at the first bound beyond its hit;
 // - near plane; eye outside the root (§4 special case);
 // - the job queue of §5.2: levels of a breadth-first subdivision, each level interleaved across
 //   the screen, interruptible between jobs by a time or sample budget, resumable next frame.
