@@ -10,6 +10,7 @@
 
 #include <CLI/CLI.hpp>
 #include <fmt/core.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <chrono>
@@ -46,6 +47,33 @@ Run measure(const Scene& scene, const KdTree& tree, const View& view, Method met
   return best;
 }
 
+// Each method on the k-d tree that suits it best: the SAH traversal costs `costs` are tried
+// for both, and the best time of each is compared (the main table shares one tree, which may
+// favour one method: ray walking prefers finer cells than frustum casting).
+void own_trees(const std::string& name, const Scene& scene, KdBuildOptions build, const std::vector<double>& costs,
+               const std::vector<int>& sizes, int threads, int repeats, int leaf) {
+  for (int size : sizes) {
+    double best[2] = {kInfinity, kInfinity};
+    double best_cost[2] = {0.0, 0.0};
+    for (double cost : costs) {
+      build.traversal_cost = cost;
+      const KdTree tree = KdTree::build(scene, build);
+      const View view(scene.camera ? *scene.camera : automatic_camera(scene.bounds()), size, size);
+      const Method methods[2] = {Method::RayWalk, Method::Frustum};
+      for (int m = 0; m < 2; ++m) {
+        const double ms = measure(scene, tree, view, methods[m], threads, repeats, leaf).ms;
+        if (ms < best[m]) {
+          best[m] = ms;
+          best_cost[m] = cost;
+        }
+      }
+    }
+    fmt::print("| {} | {}² | {:.1f} (cost {}) | {:.1f} (cost {}) | {:.2f}× |\n", name, size, best[0], best_cost[0],
+               best[1], best_cost[1], best[0] / best[1]);
+    std::fflush(stdout);
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -68,6 +96,9 @@ int main(int argc, char** argv) {
   app.add_option("--traversal-cost", build.traversal_cost, "k-d tree: SAH cost of a cell step against one ray-primitive test");
   app.add_option("--empty-bonus", build.empty_bonus, "k-d tree: SAH discount for cutting off empty space");
   app.add_flag("--frustum-only", frustum_only, "only frustum casting (for profiling)");
+  std::vector<double> own_costs;
+  app.add_option("--own-trees", own_costs,
+                 "also compare each method on its best tree among these SAH traversal costs (e.g. 0.5 1 2 4)");
   CLI11_PARSE(app, argc, argv);
 
   fmt::print("| scene | size | method | ms | Mrays/s | cells touched | cell visits/ray | ray-prim tests/ray | hit ratio | frustum/raywalk |\n");
@@ -104,6 +135,17 @@ int main(int argc, char** argv) {
         std::fflush(stdout);
         }
       }
+    }
+  }
+  if (!own_costs.empty()) {
+    fmt::print("\nEach method on its own best tree (SAH traversal costs {}):\n\n", fmt::join(own_costs, ", "));
+    fmt::print("| scene | size | ray walking ms | frustum ms (leaf {}) | ratio of bests |\n|---|---|---|---|---|\n",
+               leaves.front());
+    for (const std::string& path : scenes) {
+      Scene scene;
+      if (Status s = load_scene(path, scene); !s) return 1;
+      build.min_cell_prims = min_cell;
+      own_trees(path.substr(path.find_last_of('/') + 1), scene, build, own_costs, sizes, threads, repeats, leaves.front());
     }
   }
   return 0;
