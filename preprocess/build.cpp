@@ -22,6 +22,7 @@
 #include <condition_variable>
 #include <deque>
 #include <filesystem>
+#include <fstream>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -195,9 +196,21 @@ bool zero_area(const Triangle& t) {
   return !(glm::dot(n, n) > 0.0);
 }
 
+// True for a PLY file whose header declares a binary format (cheap to parse twice).
+bool is_binary_ply(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string line;
+  if (!std::getline(in, line) || line.rfind("ply", 0) != 0) return false;
+  for (int k = 0; k < 64 && std::getline(in, line); ++k) {
+    if (line.rfind("format ", 0) == 0) return line.rfind("format binary_", 0) == 0;
+    if (line.rfind("end_header", 0) == 0) break;
+  }
+  return false;
+}
+
 // A file of primitives that still has to be turned into cells.
 struct Part {
-  std::string path;
+  std::string path;      // its spill file; empty when the part is the inputs themselves
   Aabb region;
   uint64_t count = 0;
   std::vector<Vec3> sample;
@@ -304,11 +317,20 @@ class StoreBuilder {
     return Status::ok();
   }
 
-  // Stage 1: every input into one spill file.
+  // Stage 1: bounds and a sample of every input, and, unless the inputs are cheap to read
+  // again, one spill file of all primitives (the root part). Binary PLY is parsed again by the
+  // first partition pass instead: at 20 M triangles that is 1.7 GB not written and not read
+  // back, for a second parse of 0.4 GB.
   Status ingest(Part& root) {
-    root.path = temp_->file("ingest");
+    reparse_ = options_.reparse_binary_ply &&
+               std::all_of(options_.inputs.begin(), options_.inputs.end(), [](const std::string& in) {
+                 return is_binary_ply(in);
+               });
     SpillWriter out;
-    if (Status s = out.open(root.path); !s) return s;
+    if (!reparse_) {
+      root.path = temp_->file("ingest");
+      if (Status s = out.open(root.path); !s) return s;
+    }
     Reservoir sample(0x5eed);
     uint64_t total_bytes = 0;
     for (const std::string& in : options_.inputs) {
@@ -327,6 +349,7 @@ class StoreBuilder {
             const Aabb b = batch.prim_bounds(i);
             bounds_.extend(b);
             sample.offer(b.center());
+            if (reparse_) continue;
             if (Status s = out.write(batch, i); !s) return s;
           }
           report_.degenerate_dropped += batch.degenerate_dropped;
@@ -337,14 +360,16 @@ class StoreBuilder {
         });
     if (!read) return read;
     progress.finish();
-    if (Status s = out.close(); !s) return s;
-    report_.spill_bytes += out.bytes();
+    if (!reparse_) {
+      if (Status s = out.close(); !s) return s;
+      report_.spill_bytes += out.bytes();
+    }
     if (bounds_.empty()) bounds_ = Aabb(Vec3(-1.0), Vec3(1.0));  // an empty model still makes a store
     if (options_.codec == CellCodec::Draco) lattice_ = Lattice::covering(bounds_, options_.quant_bits);
     const double slack = options_.codec == CellCodec::Draco ? lattice_.step : 0.0;
     root.region = KdTree::root_bounds(bounds_, slack);
     root_region_ = root.region;
-    root.count = out.records();
+    root.count = reparse_ ? report_.primitives : out.records();
     root.sample = std::move(sample.points());
     return Status::ok();
   }
@@ -352,14 +377,25 @@ class StoreBuilder {
   // Ingest's producer (its own thread): parses every input into batches of kBatch primitives
   // (tessellated when asked) and records what the inputs declare (materials, lights, camera).
   Status read_inputs(Handoff<IngestBatch>& to) {
+    return parse_inputs(true, [&to](Scene&& batch, uint64_t bytes) { return to.push({std::move(batch), bytes}); });
+  }
+
+  // Parses every input into batches handed to `push` (false: stop, cancelled). The first pass
+  // records what the inputs declare; a later pass (the root part read again) must yield the
+  // same primitives, or the inputs changed under the build.
+  template <typename Push>
+  Status parse_inputs(bool first, const Push& push) {
     uint64_t source_base = 0;
     Scene batch;
     InputPrimitive prim;
-    for (const std::string& in : options_.inputs) {
+    for (size_t k = 0; k < options_.inputs.size(); ++k) {
+      const std::string& in = options_.inputs[k];
       auto opened = open_scene_reader(in);
       if (!opened) return opened.status();
       SceneReader& reader = **opened;
-      const auto material_base = static_cast<uint32_t>(info_.materials.size());
+      // Each input's materials follow the previous inputs' (the first pass appends them).
+      if (first) material_bases_.push_back(static_cast<uint32_t>(info_.materials.size()));
+      const uint32_t material_base = material_bases_[k];
       SceneBuilder builder(batch);
       uint64_t local = 0, last_bytes = 0;
       for (;;) {
@@ -380,13 +416,14 @@ class StoreBuilder {
             batch = tessellate(batch, t);  // keeps the batch's degenerate count, adds its own
           }
           const uint64_t now = reader.bytes_read();
-          if (!to.push({std::move(batch), now - std::min(now, last_bytes)})) return Status::ok();  // cancelled
+          if (!push(std::move(batch), now - std::min(now, last_bytes))) return Status::ok();  // cancelled
           batch = Scene{};
           last_bytes = now;
         }
         if (end) break;
       }
       source_base += local;
+      if (!first) continue;
       const SceneHeader& h = reader.header();
       info_.materials.insert(info_.materials.end(), h.materials.begin(), h.materials.end());
       if (info_.materials.size() == material_base) info_.materials.emplace_back();  // meshes: one default
@@ -397,7 +434,12 @@ class StoreBuilder {
       }
       info_.inputs.push_back(fs::path(in).filename().string());
     }
-    report_.input_primitives = source_base;
+    if (first) {
+      report_.input_primitives = source_base;
+    } else if (source_base != report_.input_primitives) {
+      return Status::io_error(fmt::format("{}: the inputs changed during the build ({} primitives read first, {} now)",
+                                          options_.inputs.front(), report_.input_primitives, source_base));
+    }
     return Status::ok();
   }
 
@@ -460,7 +502,7 @@ class StoreBuilder {
     bool progress = false;
     for (const Part& p : parts) progress |= p.count < part.count;
     std::error_code ec;
-    fs::remove(part.path, ec);
+    if (!part.path.empty()) fs::remove(part.path, ec);
     return emit(nodes, 0, parts, depth, progress);
   }
 
@@ -546,6 +588,12 @@ class StoreBuilder {
   // Reads a part's spill file in batches into `to` (a producer), snapped to the lattice unless
   // it already is.
   Status read_part(const Part& part, Handoff<Scene>& to) {
+    if (part.path.empty()) {  // the root part: the inputs, parsed again
+      return parse_inputs(false, [&](Scene&& batch, uint64_t) {
+        snap(batch);
+        return to.push(std::move(batch));
+      });
+    }
     SpillReader in;
     if (Status s = in.open(part.path); !s) return s;
     for (bool end = false; !end;) {
@@ -595,7 +643,7 @@ class StoreBuilder {
                                          });
     if (!loaded) return loaded;
     std::error_code ec;
-    fs::remove(part.path, ec);
+    if (!part.path.empty()) fs::remove(part.path, ec);
     ++report_.parts;
 
     KdBuildOptions kd;
@@ -718,6 +766,8 @@ class StoreBuilder {
   Lattice lattice_;
   uint64_t capacity_ = 0;
   uint64_t root_count_ = 0;
+  bool reparse_ = false;  // the root part is the inputs, parsed again (no ingest spill)
+  std::vector<uint32_t> material_bases_;  // per input: its first material in info_.materials
   uint64_t snapped_away_ = 0;
   int next_file_ = 0;
   StoreModelInfo info_;

@@ -2,12 +2,15 @@
 //
 //   1. ingest   every input is pulled through its streaming reader (src/scene_reader.h),
 //               triangulated and appended to one spill file; bounds and a reservoir sample of
-//               primitive centres are kept, nothing else.
+//               primitive centres are kept, nothing else. When every input is binary PLY
+//               there is no spill file: stage 3 (or stage 4, if everything fits) parses the
+//               inputs again, which costs less than writing and reading back all primitives,
+//               and fails the build if they changed in between.
 //   2. plan     the lattice is fixed from the bounds (Draco codec); the sample is split by
 //               median planes (longest axis) until every part's estimated in-core size fits
 //               the memory budget: the upper levels of the k-d tree.
-//   3. spill    one pass over the ingest file snaps triangles to the lattice and writes every
-//               primitive to each part whose region its bounds overlap.
+//   3. spill    one pass over the ingest file (or the inputs) snaps triangles to the lattice
+//               and writes every primitive to each part whose region its bounds overlap.
 //   4. build    each part in turn: loaded, built in core by the SAH builder inside its region
 //               (cells of at most --cell-prims references), every cell encoded (in parallel)
 //               and written as one page. A part that turns out larger than planned is split
@@ -63,6 +66,10 @@ struct BuildOptions {
   // Most primitives built in core at once; 0 derives it from `memory` (kBytesPerPrimitive).
   // Tests set it to force the out-of-core path on small models.
   uint64_t part_primitives = 0;
+  // When every input is binary PLY, the first partition pass parses the inputs again instead
+  // of writing all primitives to a temporary file first (cheaper than the file's write and
+  // read). Tests turn it off to cover the spill path with PLY inputs.
+  bool reparse_binary_ply = true;
 };
 
 struct BuildReport {
