@@ -56,11 +56,25 @@ Lattice Lattice::covering(const Aabb& bounds, int bits) {
   return lattice;
 }
 
+namespace {
+
+// std::round (halves away from zero) without the library call, bit for bit: adding and
+// removing 1.5 * 2^52 rounds to the nearest integer (ties to even) for |x| < 2^51, and a tie
+// is then moved away from zero. Anything else (huge, infinite, NaN) goes to std::round.
+inline double round_half_away(double x) {
+  if (!(std::abs(x) < 0x1p51)) return std::round(x);
+  double r = (x + 0x1.8p52) - 0x1.8p52;  // IEEE arithmetic: not reassociated without -ffast-math
+  if (std::abs(x - r) == 0.5) r = x + std::copysign(0.5, x);
+  return std::copysign(r, x);  // -0.4 rounds to -0, as std::round does
+}
+
+}  // namespace
+
 std::array<int64_t, 3> Lattice::quantize(const Vec3& p) const {
-  const double last = std::ldexp(1.0, bits) - 1.0;
+  const double last = bits >= 1 && bits <= 62 ? static_cast<double>((int64_t{1} << bits) - 1) : std::ldexp(1.0, bits) - 1.0;
   std::array<int64_t, 3> q{};
   for (int a = 0; a < 3; ++a) {
-    const double t = std::round((p[a] - origin[a]) / step);
+    const double t = round_half_away((p[a] - origin[a]) / step);
     // !(t > 0) also sends NaN to 0; clamping before the conversion keeps it defined.
     q[a] = !(t > 0.0) ? 0 : t >= last ? static_cast<int64_t>(last) : static_cast<int64_t>(t);
   }
@@ -892,25 +906,33 @@ Result<EncodedCell> encode_draco(const Scene& cell, const CellCodecOptions& opti
         return Status::invalid_argument("encode_cell: Draco round trip invented a vertex");
       }
     }
-    std::vector<std::pair<FaceKey, uint32_t>> input_keys(faces.size()), decoded_keys(faces.size());
+    // Input faces grouped by key (equal faces in input order), then each decoded face takes the
+    // next unused input face of its key: the k-th copy of a face pairs with the k-th.
+    DenseIds<FaceKey> face_ids(faces.size());
+    std::vector<uint32_t> face_class(faces.size());
     for (uint32_t f = 0; f < faces.size(); ++f) {
       const auto& v = faces[f].vertex;
-      input_keys[f] = {face_key(v[0], v[1], v[2]), f};
-      const auto& d = decoded->faces[f];
-      decoded_keys[f] = {face_key(point_vertex[d[0]], point_vertex[d[1]], point_vertex[d[2]]), f};
+      face_class[f] = face_ids.insert(face_key(v[0], v[1], v[2]));
     }
-    std::sort(input_keys.begin(), input_keys.end());
-    std::sort(decoded_keys.begin(), decoded_keys.end());
+    const size_t classes = face_ids.keys().size();
+    std::vector<uint32_t> first(classes + 1, 0), members(faces.size());
+    for (uint32_t c : face_class) ++first[c + 1];
+    for (size_t c = 0; c < classes; ++c) first[c + 1] += first[c];
+    std::vector<uint32_t> next(first.begin(), first.end() - 1);
+    for (uint32_t f = 0; f < faces.size(); ++f) members[next[face_class[f]]++] = f;
+    next.assign(first.begin(), first.end() - 1);
     sources.resize(faces.size());
     materials.resize(faces.size());
-    for (size_t k = 0; k < faces.size(); ++k) {
-      if (decoded_keys[k].first != input_keys[k].first) {
+    for (uint32_t f = 0; f < faces.size(); ++f) {
+      const auto& d = decoded->faces[f];
+      const uint32_t c = face_ids.find(face_key(point_vertex[d[0]], point_vertex[d[1]], point_vertex[d[2]]));
+      if (c == DenseIds<FaceKey>::kNone || next[c] == first[c + 1]) {
         return Status::invalid_argument(
             "encode_cell: Draco changed the cell's faces (a face was lost, added or flipped)");
       }
-      const Face& in = faces[input_keys[k].second];
-      sources[decoded_keys[k].second] = in.source;
-      materials[decoded_keys[k].second] = in.material;
+      const Face& in = faces[members[next[c]++]];
+      sources[f] = in.source;
+      materials[f] = in.material;
     }
   }
 
