@@ -140,6 +140,11 @@ void FrustumCaster::begin(const View& view, SampleBuffer& buffer, CellMarks& mar
     cell_cache_count_ = tree_.cells().size();
     cell_cache_ = std::make_unique<CellCache[]>(cell_cache_count_);
   }
+  cone_terms_.clear();
+  if (gate_ == nullptr && scene_.cones.size() <= kMaxConeTerms) {
+    cone_terms_.reserve(scene_.cones.size());
+    for (const Cone& c : scene_.cones) cone_terms_.push_back(cone_from_origin(c, view.eye));
+  }
   // One plane per pixel column and row, through the eye (§3.1: children reuse them).
   column_normal_.resize(static_cast<size_t>(view.width));
   row_normal_.resize(static_cast<size_t>(view.height));
@@ -426,6 +431,26 @@ bool FrustumCaster::in_front(const Aabb& box) const {
   return far_point >= view_.near - 1e-9 * (std::abs(far_point) + glm::length(c) + 1e-300);
 }
 
+// offer_primitive for a ray from the eye: cones use this frame's eye terms (bit-identical to
+// intersect_cone, about a third cheaper).
+[[gnu::always_inline]] inline void FrustumCaster::offer(uint32_t prim, const Ray& ray, double tmin, double tmax, RayHit& best,
+                          Counters& counters) const {
+  if (cone_terms_.empty()) {
+    offer_primitive(scene_, prim, ray, tmin, tmax, best, counters);
+    return;
+  }
+  const PrimRef& p = scene_.prims[prim];
+  double t;
+  ++counters.ray_primitive_tests;
+  const bool hit = p.kind == PrimKind::Cone && p.index < cone_terms_.size()
+                       ? intersect_cone(cone_terms_[p.index], ray.dir, tmin, std::min(tmax, best.t), t)
+                       : scene_.intersect(prim, ray, tmin, std::min(tmax, best.t), t);
+  if (hit) {
+    ++counters.hits;
+    if (t < best.t || (t == best.t && prim < best.prim)) best = {prim, t};
+  }
+}
+
 // A pixel strictly inside a job's rectangle belongs to that job alone (live jobs are never
 // nested and overlap only on the edges they share with siblings), so it is claimed without an
 // atomic read-modify-write, which cost a quarter of a frame on a wall of one element.
@@ -514,7 +539,7 @@ RayHit FrustumCaster::walk_pixel(int x, int y, const Ray& ray, double tmin, int3
       const KdTree::Cell& c = tree_.cell(cell);
       w.counters.primitives_tested += c.count;
       for (uint32_t r = c.first; r < c.first + c.count; ++r) {
-        offer_primitive(scene_, tree_.ref(r), ray, tmin, tmax, best, w.counters);
+        offer(tree_.ref(r), ray, tmin, tmax, best, w.counters);
       }
     } else {
       const std::vector<Incidence>& entries = cell_entries(cell);
@@ -523,7 +548,7 @@ RayHit FrustumCaster::walk_pixel(int x, int y, const Ray& ray, double tmin, int3
         if (inc.distance > std::min(best.t, tmax)) break;  // sorted: the rest lie farther
         if (x < inc.x0 || x > inc.x1 || y < inc.y0 || y > inc.y1 || !inc.reaches(ray.dir)) continue;
         const uint32_t prim = tree_.ref(inc.ref);
-        offer_primitive(scene_, prim, ray, tmin, tmax, best, w.counters);
+        offer(prim, ray, tmin, tmax, best, w.counters);
       }
     }
     if (best.hit()) return best;
@@ -798,7 +823,7 @@ size_t FrustumCaster::resolve_in_cell(const Job& job, const Incidence* list, uin
         Pixel& p = w.open[slot];
         if (p.hit.t < distance) continue;  // already hit in front of these bounds
         if (!list[j].reaches(p.ray.dir)) continue;
-        offer_primitive(scene_, prim, p.ray, p.tmin, p.tmax, p.hit, w.counters);
+        offer(prim, p.ray, p.tmin, p.tmax, p.hit, w.counters);
       }
     }
   }
@@ -839,7 +864,7 @@ size_t FrustumCaster::resolve_pixel_major(const Job& job, const Incidence* list,
         }
         if (!e.reaches(ray.dir)) continue;
         const uint32_t prim = tree_.ref(e.ref);
-        offer_primitive(scene_, prim, ray, tmin, tmax, best, w.counters);
+        offer(prim, ray, tmin, tmax, best, w.counters);
       }
       if (best.hit()) {
         confirm(job, x, y, best.prim, best.t, ray, w);
@@ -868,7 +893,7 @@ bool FrustumCaster::corners_and_fill(const Job& job, const Incidence* list, uint
     RayHit best;
     for (uint32_t j = 0; j < n; ++j) {
       const uint32_t prim = tree_.ref(list[j].ref);
-      offer_primitive(scene_, prim, rays[k], tmins[k], tmax, best, w.counters);
+      offer(prim, rays[k], tmins[k], tmax, best, w.counters);
     }
     hits[k] = best;
     if (best.hit() && !buffer_->confirmed(i)) confirm(job, x, y, best.prim, best.t, rays[k], w);
@@ -966,7 +991,7 @@ bool FrustumCaster::fill_plane(const Job& job, const Incidence* list, uint32_t n
       if (need_ray) {
         ray = Ray(view_.eye, d);
         const double tmin = view_.tmin(ray);
-        for (uint32_t prim : w.occluders) offer_primitive(scene_, prim, ray, tmin, kInfinity, best, w.counters);
+        for (uint32_t prim : w.occluders) offer(prim, ray, tmin, kInfinity, best, w.counters);
       }
       confirm(job, x, y, best.prim, best.t, ray, w);
     }
@@ -1026,7 +1051,7 @@ bool FrustumCaster::try_fill(const Job& job, const Incidence* list, uint32_t n, 
       }
       RayHit best{element, te};
       for (uint32_t prim : w.occluders) {
-        offer_primitive(scene_, prim, ray, tmin, kInfinity, best, w.counters);
+        offer(prim, ray, tmin, kInfinity, best, w.counters);
       }
       confirm(job, x, y, best.prim, best.t, ray, w);
     }

@@ -89,7 +89,10 @@ class FrustumCaster {
   // tree_changed() (the tree grew or changed between slices: per-cell state is resized, this
   // frame's marks kept) and resume_parked(), which queues the parked work again from the eye.
   // REQUIRES for both: no run() in progress.
-  void set_gate(CellGate* gate) { gate_ = gate; }
+  void set_gate(CellGate* gate) {
+    gate_ = gate;
+    cone_terms_.clear();  // a paged scene changes under a frame
+  }
   void tree_changed();
   size_t parked() const;
   void resume_parked();
@@ -150,6 +153,11 @@ class FrustumCaster {
   bool shadows_ = true;
   double slack_scale_ = 1.0;
 
+  // Every cone's terms that depend only on the eye, for this frame (in-memory scenes of at
+  // most kMaxConeTerms cones; a paged scene changes under the frame). offer() uses them.
+  static constexpr size_t kMaxConeTerms = size_t{1} << 16;
+  std::vector<ConeFromOrigin> cone_terms_;
+  void offer(uint32_t prim, const Ray& ray, double tmin, double tmax, RayHit& best, Counters& counters) const;
   std::vector<Vec3> column_normal_;  // plane of pixel column x, oriented towards larger x
   std::vector<Vec3> row_normal_;     // plane of pixel row y, oriented towards larger y
 

@@ -235,41 +235,48 @@ bool intersect_box(const Box& b, const Ray& ray, double tmin, double tmax, doubl
   return false;
 }
 
-bool intersect_cone(const Cone& cone, const Ray& ray, double tmin, double tmax, double& t) {
+ConeFromOrigin cone_from_origin(const Cone& cone, const Vec3& origin) {
   // Local frame at the base, with heights measured as fractions s of the axis A = apex - base
   // (no normalisation, so no sqrt): a point v is at s = v·A / |A|², its radial part is
   // v - s A, and the (double) cone is |v - s A|² = (r0 + (r1 - r0) s)².
-  const Vec3 along = cone.apex - cone.base;
-  const double inv_len2 = 1.0 / glm::length2(along);
-  const Vec3 o = ray.origin - cone.base;
-  const Vec3& d = ray.dir;
-  const double os = glm::dot(o, along) * inv_len2;
-  const double ds = glm::dot(d, along) * inv_len2;
-  const Vec3 op = o - os * along;
-  const Vec3 dp = d - ds * along;
-  const double growth = cone.apex_radius - cone.base_radius;
-  const double radius_at_origin = cone.base_radius + growth * os;
-  const double kdh = growth * ds;  // radius change per unit of t
+  ConeFromOrigin k;
+  k.along = cone.apex - cone.base;
+  k.inv_len2 = 1.0 / glm::length2(k.along);
+  const Vec3 o = origin - cone.base;
+  k.os = glm::dot(o, k.along) * k.inv_len2;
+  k.op = o - k.os * k.along;
+  k.growth = cone.apex_radius - cone.base_radius;
+  k.radius_at_origin = cone.base_radius + k.growth * k.os;
+  k.c = glm::length2(k.op) - k.radius_at_origin * k.radius_at_origin;
+  return k;
+}
+
+bool intersect_cone(const ConeFromOrigin& k, const Vec3& d, double tmin, double tmax, double& t) {
+  const double ds = glm::dot(d, k.along) * k.inv_len2;
+  const Vec3 dp = d - ds * k.along;
+  const double kdh = k.growth * ds;  // radius change per unit of t
 
   // a t² + 2 h t + c = 0. Expanding h² - a c gives |R dp - k dh op|² - |op × dp|²,
   // which stays accurate for grazing rays where h² and a c nearly cancel.
   const double a = glm::length2(dp) - kdh * kdh;
-  const double h = glm::dot(op, dp) - kdh * radius_at_origin;
-  const double c = glm::length2(op) - radius_at_origin * radius_at_origin;
-  const double disc =
-      glm::length2(radius_at_origin * dp - kdh * op) - glm::length2(glm::cross(op, dp));
+  const double h = glm::dot(k.op, dp) - kdh * k.radius_at_origin;
+  const double disc = glm::length2(k.radius_at_origin * dp - kdh * k.op) - glm::length2(glm::cross(k.op, dp));
   double roots[2];
-  const int n = solve_half_b(a, h, c, disc, roots[0], roots[1]);
+  const int n = solve_half_b(a, h, k.c, disc, roots[0], roots[1]);
   for (int i = 0; i < n; ++i) {
     const double r = roots[i];
     if (!(r >= tmin && r <= tmax)) continue;
-    const double s = os + r * ds;
+    const double s = k.os + r * ds;
     if (s >= 0.0 && s <= 1.0) {  // both roots are checked: the near one may be clipped
       t = r;
       return true;
     }
   }
   return false;
+}
+
+bool intersect_cone(const Cone& cone, const Ray& ray, double tmin, double tmax, double& t) {
+  return intersect_cone(cone_from_origin(cone, ray.origin), ray.dir, tmin, tmax, t);
 }
 
 int interval_quadratic_roots(double a, double b, double c, double span, double roots[2]) {

@@ -54,6 +54,20 @@ bool intersect_triangle(const Triangle& tri, const Ray& ray, double tmin, double
 bool intersect_sphere(const Sphere& s, const Ray& ray, double tmin, double tmax, double& t);
 bool intersect_box(const Box& b, const Ray& ray, double tmin, double tmax, double& t);
 bool intersect_cone(const Cone& c, const Ray& ray, double tmin, double tmax, double& t);
+// The cone test split in two for many rays from one origin (a frame's primary rays): the terms
+// that depend only on the cone and the origin, then the rest per direction. Composed they are
+// intersect_cone, operation for operation (bit-identical results).
+struct ConeFromOrigin {
+  Vec3 along;            // apex - base
+  double inv_len2 = 0.0;
+  Vec3 op;               // origin - base, without its part along the axis
+  double os = 0.0;       // the origin's height as a fraction of the axis
+  double growth = 0.0;   // apex radius - base radius
+  double radius_at_origin = 0.0;
+  double c = 0.0;
+};
+ConeFromOrigin cone_from_origin(const Cone& c, const Vec3& origin);
+bool intersect_cone(const ConeFromOrigin& k, const Vec3& dir, double tmin, double tmax, double& t);
 bool intersect_quadric(const Quadric& q, const Ray& ray, double tmin, double tmax, double& t);
 
 // Tight (or slightly conservative) axis-aligned bounds.
