@@ -22,7 +22,6 @@
 #include <condition_variable>
 #include <deque>
 #include <filesystem>
-#include <fstream>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -196,18 +195,6 @@ bool zero_area(const Triangle& t) {
   return !(glm::dot(n, n) > 0.0);
 }
 
-// True for a PLY file whose header declares a binary format (cheap to parse twice).
-bool is_binary_ply(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::string line;
-  if (!std::getline(in, line) || line.rfind("ply", 0) != 0) return false;
-  for (int k = 0; k < 64 && std::getline(in, line); ++k) {
-    if (line.rfind("format ", 0) == 0) return line.rfind("format binary_", 0) == 0;
-    if (line.rfind("end_header", 0) == 0) break;
-  }
-  return false;
-}
-
 // A file of primitives that still has to be turned into cells.
 struct Part {
   std::string path;      // its spill file; empty when the part is the inputs themselves
@@ -322,9 +309,11 @@ class StoreBuilder {
   // first partition pass instead: at 20 M triangles that is 1.7 GB not written and not read
   // back, for a second parse of 0.4 GB.
   Status ingest(Part& root) {
+    // An input that does not open is reported by the pass below.
     reparse_ = options_.reparse_binary_ply &&
                std::all_of(options_.inputs.begin(), options_.inputs.end(), [](const std::string& in) {
-                 return is_binary_ply(in);
+                 auto reader = open_scene_reader(in);
+                 return reader && (*reader)->binary();
                });
     SpillWriter out;
     if (!reparse_) {

@@ -435,20 +435,14 @@ bool FrustumCaster::in_front(const Aabb& box) const {
 // intersect_cone, about a third cheaper).
 [[gnu::always_inline]] inline void FrustumCaster::offer(uint32_t prim, const Ray& ray, double tmin, double tmax, RayHit& best,
                           Counters& counters) const {
-  if (cone_terms_.empty()) {
+  const PrimRef* p = cone_terms_.empty() ? nullptr : &scene_.prims[prim];
+  if (p == nullptr || p->kind != PrimKind::Cone || p->index >= cone_terms_.size()) {
     offer_primitive(scene_, prim, ray, tmin, tmax, best, counters);
     return;
   }
-  const PrimRef& p = scene_.prims[prim];
-  double t;
-  ++counters.ray_primitive_tests;
-  const bool hit = p.kind == PrimKind::Cone && p.index < cone_terms_.size()
-                       ? intersect_cone(cone_terms_[p.index], ray.dir, tmin, std::min(tmax, best.t), t)
-                       : scene_.intersect(prim, ray, tmin, std::min(tmax, best.t), t);
-  if (hit) {
-    ++counters.hits;
-    if (t < best.t || (t == best.t && prim < best.prim)) best = {prim, t};
-  }
+  double t = 0.0;
+  const bool hit = intersect_cone(cone_terms_[p->index], ray.dir, tmin, std::min(tmax, best.t), t);
+  record_test(hit, prim, t, best, counters);
 }
 
 // A pixel strictly inside a job's rectangle belongs to that job alone (live jobs are never
@@ -954,6 +948,7 @@ bool FrustumCaster::fill_plane(const Job& job, const Incidence* list, uint32_t n
   };
   uint32_t candidate = n, tried = 0;
   double max_t = 0.0;
+  Vec3 normal;
   for (uint32_t j = 0; j < n && candidate == n && tried < kPlaneFillCandidates; ++j) {
     const Incidence& e = list[j];
     if (e.x0 > job.x0 || e.x1 < job.x1 || e.y0 > job.y0 || e.y1 < job.y1) continue;
@@ -961,14 +956,13 @@ bool FrustumCaster::fill_plane(const Job& job, const Incidence* list, uint32_t n
     if (ref.kind != PrimKind::Triangle) continue;
     ++tried;
     const Triangle& tri = scene_.triangles[ref.index];
-    const Vec3 normal = glm::cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
+    normal = glm::cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
     const double area2 = glm::dot(normal, normal);
     if (area2 > 0.0 && corners_inside(tri, normal, area2, max_t)) candidate = j;
   }
   if (candidate == n) return false;
   const uint32_t element = tree_.ref(list[candidate].ref);
   const Triangle& tri = scene_.triangles[scene_.prims[element].index];
-  const Vec3 normal = glm::cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
   w.occluders.clear();
   for (uint32_t j = 0; j < n; ++j) {
     if (j == candidate) continue;

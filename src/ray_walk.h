@@ -20,16 +20,22 @@ struct RayHit {
   bool hit() const { return prim != kNoPrim; }
 };
 
+// Counts one ray-primitive test and keeps its hit at t in `best` when nearer (equal distances:
+// the lower primitive index, so every method agrees).
+inline void record_test(bool hit, uint32_t prim, double t, RayHit& best, Counters& counters) {
+  ++counters.ray_primitive_tests;
+  if (!hit) return;
+  ++counters.hits;
+  if (t < best.t || (t == best.t && prim < best.prim)) best = {prim, t};
+}
+
 // Tests primitive `prim` against the ray for tmin <= t <= min(tmax, best.t) and keeps the
-// nearer hit in `best` (equal distances: the lower primitive index, so every method agrees).
+// nearer hit in `best`.
 inline void offer_primitive(const Scene& scene, uint32_t prim, const Ray& ray, double tmin, double tmax,
                             RayHit& best, Counters& counters) {
-  double t;
-  ++counters.ray_primitive_tests;
-  if (scene.intersect(prim, ray, tmin, std::min(tmax, best.t), t)) {
-    ++counters.hits;
-    if (t < best.t || (t == best.t && prim < best.prim)) best = {prim, t};
-  }
+  double t = 0.0;
+  const bool hit = scene.intersect(prim, ray, tmin, std::min(tmax, best.t), t);
+  record_test(hit, prim, t, best, counters);
 }
 
 // Nearest hit with t >= tmin among all primitives. Also reports the nearest t of a primitive

@@ -267,6 +267,7 @@ class PlyReader final : public FormatReader {
   Status open(const std::string& path);
 
   int64_t declared_primitives() const override { return declared_; }
+  bool binary() const override { return !ascii_; }
   uint64_t bytes_read() const override {
     if (element_ >= elements_.size()) return tok_.size();  // trailing bytes are not data
     return ascii_ ? tok_.offset() : stream_.offset();

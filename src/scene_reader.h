@@ -54,6 +54,9 @@ class SceneReader {
   virtual const SceneHeader& header() const = 0;
   // Total number of input primitives when the format states it up front (PLY, OFF), else -1.
   virtual int64_t declared_primitives() const { return -1; }
+  // True when the body is binary records (binary PLY): parsing it again costs little next to
+  // writing and reading back a copy (frontier-build reads such inputs twice).
+  virtual bool binary() const { return false; }
   // Bytes consumed so far and the file size, for progress reports.
   virtual uint64_t bytes_read() const = 0;
   virtual uint64_t bytes_total() const = 0;

@@ -50,8 +50,9 @@ Run measure(const Scene& scene, const KdTree& tree, const View& view, Method met
 // Each method on the k-d tree that suits it best: the SAH traversal costs `costs` are tried
 // for both, and the best time of each is compared (the main table shares one tree, which may
 // favour one method: ray walking prefers finer cells than frustum casting).
-void own_trees(const std::string& name, const Scene& scene, KdBuildOptions build, const std::vector<double>& costs,
+std::vector<std::string> own_trees(const std::string& name, const Scene& scene, KdBuildOptions build, const std::vector<double>& costs,
                const std::vector<int>& sizes, int threads, int repeats, int leaf) {
+  std::vector<std::string> rows;
   for (int size : sizes) {
     double best[2] = {kInfinity, kInfinity};
     double best_cost[2] = {0.0, 0.0};
@@ -68,10 +69,10 @@ void own_trees(const std::string& name, const Scene& scene, KdBuildOptions build
         }
       }
     }
-    fmt::print("| {} | {}² | {:.1f} (cost {}) | {:.1f} (cost {}) | {:.2f}× |\n", name, size, best[0], best_cost[0],
-               best[1], best_cost[1], best[0] / best[1]);
-    std::fflush(stdout);
+    rows.push_back(fmt::format("| {} | {}² | {:.1f} (cost {}) | {:.1f} (cost {}) | {:.2f}× |", name, size, best[0],
+                               best_cost[0], best[1], best_cost[1], best[0] / best[1]));
   }
+  return rows;
 }
 
 }  // namespace
@@ -100,6 +101,7 @@ int main(int argc, char** argv) {
   app.add_option("--own-trees", own_costs,
                  "also compare each method on its best tree among these SAH traversal costs (e.g. 0.5 1 2 4)");
   CLI11_PARSE(app, argc, argv);
+  std::vector<std::string> own_rows;  // --own-trees, printed after the main table
 
   fmt::print("| scene | size | method | ms | Mrays/s | cells touched | cell visits/ray | ray-prim tests/ray | hit ratio | frustum/raywalk |\n");
   fmt::print("|---|---|---|---|---|---|---|---|---|---|\n");
@@ -113,6 +115,11 @@ int main(int argc, char** argv) {
     const KdTree tree = KdTree::build(scene, build);
     const Camera camera = scene.camera ? *scene.camera : automatic_camera(scene.bounds());
     std::string name = path.substr(path.find_last_of('/') + 1);
+    if (!own_costs.empty()) {
+      for (std::string& row : own_trees(name, scene, build, own_costs, sizes, threads, repeats, leaves.front())) {
+        own_rows.push_back(std::move(row));
+      }
+    }
     for (int size : sizes) {
       const View view(camera, size, size);
       std::vector<Method> methods = {Method::RayWalk, Method::Frustum};
@@ -141,12 +148,7 @@ int main(int argc, char** argv) {
     fmt::print("\nEach method on its own best tree (SAH traversal costs {}):\n\n", fmt::join(own_costs, ", "));
     fmt::print("| scene | size | ray walking ms | frustum ms (leaf {}) | ratio of bests |\n|---|---|---|---|---|\n",
                leaves.front());
-    for (const std::string& path : scenes) {
-      Scene scene;
-      if (Status s = load_scene(path, scene); !s) return 1;
-      build.min_cell_prims = min_cell;
-      own_trees(path.substr(path.find_last_of('/') + 1), scene, build, own_costs, sizes, threads, repeats, leaves.front());
-    }
+    for (const std::string& row : own_rows) fmt::print("{}\n", row);
   }
   return 0;
 }
