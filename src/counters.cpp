@@ -13,6 +13,7 @@ Counters& Counters::operator+=(const Counters& o) {
   cell_visits += o.cell_visits;
   frusta += o.frusta;
   frustum_fills += o.frustum_fills;
+  frustum_lookaheads += o.frustum_lookaheads;
   plane_tests += o.plane_tests;
   primitives_tested += o.primitives_tested;
   ray_primitive_tests += o.ray_primitive_tests;
@@ -32,6 +33,7 @@ nlohmann::json Counters::to_json() const {
           {"cell_visits", cell_visits},
           {"frusta", frusta},
           {"frustum_fills", frustum_fills},
+          {"frustum_lookaheads", frustum_lookaheads},
           {"plane_tests", plane_tests},
           {"primitives_tested", primitives_tested},
           {"ray_primitive_tests", ray_primitive_tests},

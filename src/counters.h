@@ -16,6 +16,7 @@ struct Counters {
   uint64_t cell_visits = 0;          // cell entries counted with repetition
   uint64_t frusta = 0;               // frustum jobs processed
   uint64_t frustum_fills = 0;        // frusta resolved by the one-element fill
+  uint64_t frustum_lookaheads = 0;   // frusta resolved against the few elements found ahead
   uint64_t plane_tests = 0;          // element bounds classified against a frustum plane
   uint64_t primitives_tested = 0;    // distinct (element, frustum-or-ray) incidences examined
   uint64_t ray_primitive_tests = 0;  // ray/primitive intersection tests

@@ -16,6 +16,15 @@ namespace {
 
 constexpr uint8_t kLeft = 1, kRight = 2, kBottom = 4, kTop = 8;  // straddle bits per plane
 constexpr uint32_t kMaxFillOccluders = 6;
+// Look-ahead (gather_ahead): at most this many tree nodes and references examined, at most
+// this many elements found, for frusta one or two levels above the leaf size. Leaf frusta
+// mostly find more than the limit (rings: 1938 of 2066 per frame), larger ones pay to search
+// and seldom succeed. Interleaved minima, 513²: tree 21.4 -> 18.3 ms, rings 31.0 -> 29.5,
+// shells 99.6 -> 97.2; leaf frusta included: rings 33.5; limit 8 or 16, budget 128 or 512:
+// no better.
+constexpr size_t kAheadBudget = 256;
+constexpr size_t kAheadLimit = 4;
+constexpr int kAheadMaxSpan = 4;  // in leaf sizes
 // Frusta of at least this many pixels try the plane fill (fill_plane).
 constexpr int kPlaneFillMinPixels = 16;
 // Triangles covering the frustum whose corners it tests (a quad's two halves both cover it).
@@ -100,6 +109,9 @@ struct FrustumCaster::Worker {
   std::vector<uint32_t> slot_stamp, slot;
   uint32_t stamp = 0;
   std::vector<Pixel> open;
+  std::vector<std::pair<int32_t, Aabb>> nodes;  // gather_ahead's descent stack,
+  std::vector<uint32_t> ahead;                  // the elements it found
+  std::vector<int32_t> ahead_cells;             // and the cells it read them from
   Counters counters;
   uint16_t index = 0;  // which arenas_in_ slot its arena_out becomes
 };
@@ -687,12 +699,133 @@ void FrustumCaster::process(Job job, Worker& w) {
         continue;
       }
     }
+    // The frustum goes on through several cells. Before splitting it, ask the tree whether
+    // only a few elements (or none) lie ahead of it: then its pixels test just those.
+    if (!job.small(leaf_) && job.small(kAheadMaxSpan * leaf_) && gather_ahead(job, w)) {
+      ++w.counters.frustum_lookaheads;
+      resolve_against_ahead(job, w);
+      return;
+    }
     if (job.small(leaf_)) {
       resolve_by_walking(job, w, true);
       return;
     }
     split(job, nullptr, 0, w);
     return;
+  }
+}
+
+// The elements that could still be hit inside the frustum beyond its current cell, into
+// w.ahead: a descent of the whole tree keeping nodes whose bounds are not outside the
+// frustum's planes, then the references of the cells it reaches, each tested by its bounds and
+// by its own shape (Scene::below_plane). False when it gives up: more than kAheadLimit
+// elements, more than kAheadBudget nodes and references examined, or a cell not paged in.
+// Nothing is missed: every ray of the frustum has already tested what lies in and before its
+// current cell (the frustum crossed those cells whole), and leaves the current cell through a
+// face its direction points to, so what lies ahead is beyond that face. On success, the cells
+// whose references it read count as touched.
+bool FrustumCaster::gather_ahead(const Job& job, Worker& w) const {
+  std::array<Vec3, 7> planes = {column_normal_[size_t(job.x0)], -column_normal_[size_t(job.x1)],
+                                row_normal_[size_t(job.y0)], -row_normal_[size_t(job.y1)]};
+  size_t plane_count = 4;
+  // Every ray of the frustum is inside the current cell and leaves it through a face its
+  // direction points to: what lies ahead is beyond one of those faces. An axis on which all
+  // directions agree in sign also separates: the frustum lies on one side of the eye's plane.
+  const Aabb& here = tree_.cell(job.cell).bounds;
+  std::array<bool, 3> pos{}, neg{};
+  for (int a = 0; a < 3; ++a) {
+    for (int k = 0; k < 4; ++k) {
+      const int x = (k & 1) ? job.x1 : job.x0, y = (k & 2) ? job.y1 : job.y0;
+      const double d = view_.direction(x, y)[a];
+      pos[size_t(a)] = pos[size_t(a)] || d >= 0.0;
+      neg[size_t(a)] = neg[size_t(a)] || d <= 0.0;
+    }
+    if (pos[size_t(a)] != neg[size_t(a)]) {
+      Vec3 n{0.0};
+      n[a] = pos[size_t(a)] ? 1.0 : -1.0;
+      planes[plane_count++] = n;
+    }
+  }
+  auto inside = [&](const Aabb& box) {
+    bool ahead = false;
+    for (int a = 0; a < 3; ++a) {
+      ahead = ahead || (pos[size_t(a)] && box.hi[a] >= here.hi[a]) || (neg[size_t(a)] && box.lo[a] <= here.lo[a]);
+    }
+    if (!ahead) return false;
+    for (size_t k = 0; k < plane_count; ++k) {
+      if (classify(planes[k], box) == Side::Outside) return false;
+    }
+    return in_front(box);
+  };
+  w.ahead.clear();
+  w.ahead_cells.clear();
+  w.nodes.clear();
+  w.nodes.emplace_back(0, tree_.bounds());
+  size_t budget = kAheadBudget;
+  while (!w.nodes.empty()) {
+    if (budget-- == 0) return false;
+    w.counters.plane_tests += plane_count;
+    auto [n, box] = w.nodes.back();
+    w.nodes.pop_back();
+    const KdTree::Node& node = tree_.nodes()[size_t(n)];
+    if (node.is_link()) {
+      w.nodes.emplace_back(int32_t(node.child), box);
+      continue;
+    }
+    if (node.is_leaf()) {
+      const int32_t c = int32_t(node.child);
+      if (c == job.cell) continue;
+      const KdTree::Cell& cell = tree_.cell(c);
+      const bool missing = gate_ != nullptr && gate_->missing(c);
+      if (!(cell.count > 0 || missing) || !inside(cell.content)) continue;
+      if (missing) return false;
+      w.ahead_cells.push_back(c);
+      for (uint32_t r = cell.first; r < cell.first + cell.count; ++r) {
+        if (budget-- == 0) return false;
+        if (!inside(tree_.ref_bounds(r))) continue;
+        const uint32_t prim = tree_.ref(r);
+        if (std::find(w.ahead.begin(), w.ahead.end(), prim) != w.ahead.end()) continue;
+        bool out = false;
+        for (size_t k = 0; k < plane_count && !out; ++k) out = scene_.below_plane(prim, view_.eye, planes[k]);
+        if (out) continue;
+        if (w.ahead.size() == kAheadLimit) return false;
+        w.ahead.push_back(prim);
+      }
+      continue;
+    }
+    const int a = int(node.axis_or_leaf);
+    Aabb lower = box, upper = box;
+    lower.hi[a] = node.split;
+    upper.lo[a] = node.split;
+    // Nearer child on top of the stack: a crowded frustum meets its limit sooner.
+    const bool upper_near = view_.eye[a] >= node.split;
+    if (!upper_near && inside(upper)) w.nodes.emplace_back(int32_t(node.child), upper);
+    if (inside(lower)) w.nodes.emplace_back(n + 1, lower);
+    if (upper_near && inside(upper)) w.nodes.emplace_back(int32_t(node.child), upper);
+  }
+  for (int32_t c : w.ahead_cells) {
+    if (marks_->mark(c)) ++w.counters.cells_touched;
+  }
+  return true;
+}
+
+// Every open pixel of the frustum against the elements gather_ahead found, along the whole ray.
+void FrustumCaster::resolve_against_ahead(const Job& job, Worker& w) {
+  if (w.ahead.empty()) {
+    fill_background(job, w);
+    return;
+  }
+  const size_t W = size_t(view_.width);
+  for (int y = job.y0; y <= job.y1; ++y) {
+    for (int x = job.x0; x <= job.x1; ++x) {
+      const size_t i = size_t(y) * W + size_t(x);
+      if (buffer_->confirmed(i)) continue;
+      const Ray ray = view_.ray(x, y);
+      const double tmin = view_.tmin(ray);
+      RayHit best;
+      for (uint32_t prim : w.ahead) offer(prim, ray, tmin, kInfinity, best, w.counters);
+      confirm(job, x, y, best.prim, best.t, ray, w);
+    }
   }
 }
 

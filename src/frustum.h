@@ -15,6 +15,11 @@
 // - per frame, each cell's elements carry a screen rectangle, a lower bound on their distance
 //   and the cone of eye directions that can reach them (exact for spheres), so a pixel tests
 //   only elements it can hit, nearest first, and stops at the first bound beyond its hit;
+// - look-ahead (beyond the paper): a frustum one or two levels above the leaf that cannot
+//   advance asks the whole tree which elements could lie in it beyond its cell (node bounds,
+//   then each element's own shape against the frustum's planes); when at most four do, its
+//   pixels test only those, and when none does, it is background. This replaces the strips of
+//   lone walks along the images of cell boundaries over floors and open sky (gather_ahead);
 // - near plane; eye outside the root (§4 special case);
 // - the job queue of §5.2: levels of a breadth-first subdivision, each level interleaved across
 //   the screen, interruptible between jobs by a time or sample budget, resumable next frame.
@@ -106,6 +111,8 @@ class FrustumCaster {
   void process(Job job, Worker& w);
   Side classify(const Vec3& normal, const Aabb& box) const;
   bool in_front(const Aabb& box) const;
+  bool gather_ahead(const Job& job, Worker& w) const;
+  void resolve_against_ahead(const Job& job, Worker& w);
   bool classify_planes(int x0, int x1, int y0, int y1, const Aabb& box, uint8_t planes, uint8_t& straddle) const;
   bool collect(const Job& job, Worker& w);
   void resolve_by_walking(const Job& job, Worker& w, bool from_next_cell);

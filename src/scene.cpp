@@ -60,6 +60,49 @@ bool Scene::bounding_sphere(uint32_t i, Vec3& centre, double& radius) const {
   return false;
 }
 
+bool Scene::below_plane(uint32_t i, const Vec3& origin, const Vec3& normal) const {
+  const PrimRef& r = prims[i];
+  double top = -kInfinity, scale = 0.0;  // the largest signed distance, and its terms' size
+  auto point = [&](const Vec3& q, double reach) {
+    const double s = glm::dot(normal, q - origin);
+    top = std::max(top, s + reach);
+    scale = std::max(scale, std::abs(s) + reach);
+  };
+  switch (r.kind) {
+    case PrimKind::Triangle: {
+      const Triangle& t = triangles[r.index];
+      point(t.v0, 0.0);
+      point(t.v1, 0.0);
+      point(t.v2, 0.0);
+      break;
+    }
+    case PrimKind::Sphere: {
+      const Sphere& s = spheres[r.index];
+      point(s.center, std::abs(s.radius) * glm::length(normal));
+      break;
+    }
+    case PrimKind::Cone: {
+      // The surface lies in the hull of its two end circles; a circle's farthest point from
+      // the plane is its centre's distance plus radius × |normal| × sin(angle to the axis).
+      const Cone& c = cones[r.index];
+      const Vec3 axis = c.apex - c.base;
+      const double length = glm::length(axis);
+      const double nn = glm::dot(normal, normal);
+      double across = std::sqrt(nn);
+      if (length > 0.0) {
+        const double along = glm::dot(normal, axis) / length;
+        // The difference cancels when the normal runs along the axis: 1e-12 nn covers it.
+        across = std::sqrt(std::max(0.0, nn - along * along) + 1e-12 * nn);
+      }
+      point(c.base, std::abs(c.base_radius) * across);
+      point(c.apex, std::abs(c.apex_radius) * across);
+      break;
+    }
+    default: return false;
+  }
+  return top < -1e-9 * scale;
+}
+
 Vec3 Scene::shading_normal(uint32_t i, const Vec3& hit, const Ray& ray) const {
   const PrimRef& p = prims[i];
   Vec3 n{0.0, 0.0, 1.0};

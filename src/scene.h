@@ -78,6 +78,11 @@ struct Scene {
   // A sphere enclosing primitive i's surface, when one tighter than its bounds' is cheap to
   // give (spheres: the sphere itself; cones: around the axis midpoint). False for the others.
   bool bounding_sphere(uint32_t i, Vec3& centre, double& radius) const;
+  // Whether primitive i lies wholly on the negative side of the plane through `origin` with
+  // `normal` (dot(normal, q - origin) < 0 at every surface point q, by a relative margin).
+  // Exact for triangles, spheres and cones (each end circle's farthest point); boxes and
+  // quadrics answer false: their bounds are all there is to test.
+  bool below_plane(uint32_t i, const Vec3& origin, const Vec3& normal) const;
   // Unit normal at the hit point p on primitive i, facing against ray.dir (shading normal when
   // the primitive has one).
   Vec3 shading_normal(uint32_t i, const Vec3& p, const Ray& ray) const;

@@ -34,6 +34,18 @@ void expect_matches_brute(const Scene& scene, const KdTree& tree, const View& vi
 
 using testing::camera_at;
 
+// The counters of one unshaded frustum-casting frame on 2 threads.
+Counters frustum_counters(const Scene& scene, const KdTree& tree, const View& view,
+                          int leaf = FrustumCaster::kDefaultLeafPixels) {
+  Renderer renderer(scene, tree, 2);
+  SampleBuffer buffer;
+  RenderOptions options;
+  options.method = Method::Frustum;
+  options.shade = false;
+  options.leaf_pixels = leaf;
+  return renderer.render(view, options, buffer);
+}
+
 TEST(EngineRandom, TwoHundredScenesMatchBruteForce) {
   RecordProperty("methods", "ray walking; frustum casting with 2x2, 5x5 and 16x16 leaves: ids against brute force");
   std::mt19937_64 rng(20261122);
@@ -230,14 +242,50 @@ TEST(EngineHardCases, FilledFloorsAndWallsMatchBruteForce) {
     for (size_t k = 0; k < 4; ++k) {
       const View view(camera_at(eyes[k] + offset, ats[k] + offset, 60.0), 97, 89);
       expect_matches_brute(scene, tree, view, "floor view " + std::to_string(k) + (offset.x != 0.0 ? " far" : ""));
-      Renderer renderer(scene, tree, 2);
-      SampleBuffer buffer;
-      RenderOptions options;
-      options.method = Method::Frustum;
-      options.shade = false;
-      fills += renderer.render(view, options, buffer).frustum_fills;
+      fills += frustum_counters(scene, tree, view).frustum_fills;
     }
     EXPECT_GT(fills, 20u) << "the floor and wall should fill whole frusta";
+  }
+}
+
+// Frusta that cannot advance through a fine tree ask it which few elements lie ahead
+// (gather_ahead) and test only those: a floor under a sparse "tree" of slanted cones and
+// spheres, with sky around it, seen from the side, from inside the crown, straight down (the
+// view's directions change sign on two axes), grazing the floor, from outside the root, and
+// moved 1e6 from the origin.
+TEST(EngineHardCases, LookAheadMatchesBruteForce) {
+  RecordProperty("methods", "frustum casting with look-ahead, ray walking: ids against brute force; look-aheads counted");
+  std::mt19937_64 rng(77);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (const Vec3& offset : {Vec3(0.0), Vec3(-1e6, 1e6, 1e6)}) {
+    Scene scene;
+    scene.materials.push_back({});
+    uint32_t source = 0;
+    scene.add_triangle({Vec3(-20, -20, 0), Vec3(20, -20, 0), Vec3(20, 20, 0)}, source, 0);
+    scene.add_triangle({Vec3(-20, -20, 0), Vec3(20, 20, 0), Vec3(-20, 20, 0)}, source++, 0);
+    for (int i = 0; i < 60; ++i) {
+      const Vec3 base(1.5 * u(rng), 1.5 * u(rng), 1.0 + 2.0 * std::abs(u(rng)));
+      const Vec3 tip = base + Vec3(u(rng), u(rng), 0.5 * u(rng));
+      const double r = 0.02 + 0.05 * std::abs(u(rng));
+      scene.add_cone({base, r, tip, 0.5 * r}, source++, 0);
+      scene.add_sphere({tip, 1.5 * r}, source++, 0);
+    }
+    scene.add_cone({Vec3(0, 0, 0), 0.2, Vec3(0, 0, 2), 0.1}, source++, 0);  // trunk, standing on the floor
+    scene.input_primitives = source;
+    scene.translate(offset);
+    KdBuildOptions opt;
+    opt.max_cell_prims = 2;
+    const KdTree tree = KdTree::build(scene, opt);
+    const Vec3 eyes[] = {Vec3(6, 1, 2), Vec3(0.3, 0.2, 2.0), Vec3(0.01, 0.02, 12), Vec3(7, -6, 1e-3), Vec3(30, 25, 9)};
+    const Vec3 ats[] = {Vec3(0, 0, 1.8), Vec3(2, 1, 2.5), Vec3(0.01, 0.02, 0), Vec3(0, 0, 0.3), Vec3(0, 0, 1)};
+    uint64_t lookaheads = 0;
+    for (size_t k = 0; k < 5; ++k) {
+      const View view(camera_at(eyes[k] + offset, ats[k] + offset, k == 1 ? 100.0 : 50.0), 129, 121);
+      expect_matches_brute(scene, tree, view, "look-ahead view " + std::to_string(k) + (offset.x != 0.0 ? " far" : ""));
+      // At this image size the default leaf makes every frustum start small: count with 5.
+      lookaheads += frustum_counters(scene, tree, view, 5).frustum_lookaheads;
+    }
+    EXPECT_GT(lookaheads, 50u) << "frusta over the floor and the sky should resolve by looking ahead";
   }
 }
 
