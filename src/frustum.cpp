@@ -703,7 +703,7 @@ void FrustumCaster::process(Job job, Worker& w) {
     // only a few elements (or none) lie ahead of it: then its pixels test just those.
     if (!job.small(leaf_) && job.small(kAheadMaxSpan * leaf_) && gather_ahead(job, w)) {
       ++w.counters.frustum_lookaheads;
-      resolve_against_ahead(job, w);
+      resolve_against_ahead(job, rays, tmins, w);
       return;
     }
     if (job.small(leaf_)) {
@@ -809,10 +809,29 @@ bool FrustumCaster::gather_ahead(const Job& job, Worker& w) const {
   return true;
 }
 
-// Every open pixel of the frustum against the elements gather_ahead found, along the whole ray.
-void FrustumCaster::resolve_against_ahead(const Job& job, Worker& w) {
+// Every open pixel of the frustum against the elements gather_ahead found, along the whole
+// ray. When the corner rays all hit one of them, a triangle, inside, the pixels take their
+// distance from its plane (the argument of fill_plane, with no cell to stay in: nothing else
+// lies ahead but the other elements found).
+void FrustumCaster::resolve_against_ahead(const Job& job, const std::array<Ray, 4>& rays,
+                                          const std::array<double, 4>& tmins, Worker& w) {
   if (w.ahead.empty()) {
     fill_background(job, w);
+    return;
+  }
+  for (uint32_t element : w.ahead) {
+    const PrimRef& ref = scene_.prims[element];
+    Vec3 normal;
+    double max_t;
+    if (ref.kind != PrimKind::Triangle ||
+        !corners_on_triangle(scene_.triangles[ref.index], rays, tmins, nullptr, normal, max_t, w)) {
+      continue;
+    }
+    w.occluders.clear();
+    for (uint32_t other : w.ahead) {
+      if (other != element) w.occluders.push_back(other);
+    }
+    fill_from_plane(job, element, normal, w);
     return;
   }
   const size_t W = size_t(view_.width);
@@ -1057,28 +1076,6 @@ bool FrustumCaster::fill_plane(const Job& job, const Incidence* list, uint32_t n
   const int nx = job.x1 - job.x0 + 1, ny = job.y1 - job.y0 + 1;
   if (nx * ny < kPlaneFillMinPixels) return false;
   const Aabb& cell = tree_.cell(job.cell).bounds;
-  const double inset = 1e-12 * (cell.magnitude() + glm::length(cell.extent()));
-  // The corner rays' hits on a triangle, or false.
-  auto corners_inside = [&](const Triangle& tri, const Vec3& normal, double area2, double& max_t) {
-    max_t = 0.0;
-    for (size_t k = 0; k < 4; ++k) {
-      double t;
-      ++w.counters.ray_primitive_tests;
-      if (!intersect_triangle(tri, rays[k], tmins[k], kInfinity, t)) return false;
-      ++w.counters.hits;
-      const Vec3 p = rays[k].at(t);
-      for (int a = 0; a < 3; ++a) {
-        if (!(p[a] >= cell.lo[a] + inset && p[a] <= cell.hi[a] - inset)) return false;
-      }
-      // Strictly inside the triangle (a barycentric margin): interior rays never graze an edge.
-      const double b0 = glm::dot(glm::cross(tri.v1 - tri.v0, p - tri.v0), normal);
-      const double b1 = glm::dot(glm::cross(tri.v2 - tri.v1, p - tri.v1), normal);
-      const double b2 = glm::dot(glm::cross(tri.v0 - tri.v2, p - tri.v2), normal);
-      if (!(b0 > 1e-7 * area2 && b1 > 1e-7 * area2 && b2 > 1e-7 * area2)) return false;
-      max_t = std::max(max_t, t);
-    }
-    return true;
-  };
   uint32_t candidate = n, tried = 0;
   double max_t = 0.0;
   Vec3 normal;
@@ -1088,14 +1085,9 @@ bool FrustumCaster::fill_plane(const Job& job, const Incidence* list, uint32_t n
     const PrimRef& ref = scene_.prims[tree_.ref(e.ref)];
     if (ref.kind != PrimKind::Triangle) continue;
     ++tried;
-    const Triangle& tri = scene_.triangles[ref.index];
-    normal = glm::cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
-    const double area2 = glm::dot(normal, normal);
-    if (area2 > 0.0 && corners_inside(tri, normal, area2, max_t)) candidate = j;
+    if (corners_on_triangle(scene_.triangles[ref.index], rays, tmins, &cell, normal, max_t, w)) candidate = j;
   }
   if (candidate == n) return false;
-  const uint32_t element = tree_.ref(list[candidate].ref);
-  const Triangle& tri = scene_.triangles[scene_.prims[element].index];
   w.occluders.clear();
   for (uint32_t j = 0; j < n; ++j) {
     if (j == candidate) continue;
@@ -1105,6 +1097,45 @@ bool FrustumCaster::fill_plane(const Job& job, const Incidence* list, uint32_t n
     w.occluders.push_back(tree_.ref(e.ref));
     if (w.occluders.size() > kMaxFillOccluders) return false;
   }
+  fill_from_plane(job, tree_.ref(list[candidate].ref), normal, w);
+  ++w.counters.frustum_fills;
+  return true;
+}
+
+// Whether the four corner rays hit `tri` strictly inside (a barycentric margin, so interior
+// rays never graze an edge) and, given `cell`, at points inside it. Gives the triangle's
+// normal and the farthest corner hit.
+bool FrustumCaster::corners_on_triangle(const Triangle& tri, const std::array<Ray, 4>& rays,
+                                        const std::array<double, 4>& tmins, const Aabb* cell, Vec3& normal,
+                                        double& max_t, Worker& w) const {
+  normal = glm::cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
+  const double area2 = glm::dot(normal, normal);
+  if (!(area2 > 0.0)) return false;
+  const double inset = cell ? 1e-12 * (cell->magnitude() + glm::length(cell->extent())) : 0.0;
+  max_t = 0.0;
+  for (size_t k = 0; k < 4; ++k) {
+    double t;
+    ++w.counters.ray_primitive_tests;
+    if (!intersect_triangle(tri, rays[k], tmins[k], kInfinity, t)) return false;
+    ++w.counters.hits;
+    const Vec3 p = rays[k].at(t);
+    for (int a = 0; a < 3 && cell; ++a) {
+      if (!(p[a] >= cell->lo[a] + inset && p[a] <= cell->hi[a] - inset)) return false;
+    }
+    const double b0 = glm::dot(glm::cross(tri.v1 - tri.v0, p - tri.v0), normal);
+    const double b1 = glm::dot(glm::cross(tri.v2 - tri.v1, p - tri.v1), normal);
+    const double b2 = glm::dot(glm::cross(tri.v0 - tri.v2, p - tri.v2), normal);
+    if (!(b0 > 1e-7 * area2 && b1 > 1e-7 * area2 && b2 > 1e-7 * area2)) return false;
+    max_t = std::max(max_t, t);
+  }
+  return true;
+}
+
+// Every open pixel of the frustum takes its distance to triangle `element` (normal `normal`)
+// from its direction alone, then tests w.occluders, which must hold every element that could
+// come nearer.
+void FrustumCaster::fill_from_plane(const Job& job, uint32_t element, const Vec3& normal, Worker& w) {
+  const Triangle& tri = scene_.triangles[scene_.prims[element].index];
   const double offset = glm::dot(normal, tri.v0 - view_.eye);
   const bool need_ray = shade_ || !w.occluders.empty();
   const size_t W = size_t(view_.width);
@@ -1123,8 +1154,6 @@ bool FrustumCaster::fill_plane(const Job& job, const Incidence* list, uint32_t n
       confirm(job, x, y, best.prim, best.t, ray, w);
     }
   }
-  ++w.counters.frustum_fills;
-  return true;
 }
 
 // Resolves every pixel of the frustum against `element` and the few impinging elements whose

@@ -18,7 +18,8 @@
 // - look-ahead (beyond the paper): a frustum one or two levels above the leaf that cannot
 //   advance asks the whole tree which elements could lie in it beyond its cell (node bounds,
 //   then each element's own shape against the frustum's planes); when at most four do, its
-//   pixels test only those, and when none does, it is background. This replaces the strips of
+//   pixels test only those (or, when the corners all hit one of them, a triangle, take their
+//   distance from its plane as fill_plane does), and when none does, it is background. This replaces the strips of
 //   lone walks along the images of cell boundaries over floors and open sky (gather_ahead);
 // - near plane; eye outside the root (§4 special case);
 // - the job queue of §5.2: levels of a breadth-first subdivision, each level interleaved across
@@ -112,7 +113,8 @@ class FrustumCaster {
   Side classify(const Vec3& normal, const Aabb& box) const;
   bool in_front(const Aabb& box) const;
   bool gather_ahead(const Job& job, Worker& w) const;
-  void resolve_against_ahead(const Job& job, Worker& w);
+  void resolve_against_ahead(const Job& job, const std::array<Ray, 4>& rays, const std::array<double, 4>& tmins,
+                             Worker& w);
   bool classify_planes(int x0, int x1, int y0, int y1, const Aabb& box, uint8_t planes, uint8_t& straddle) const;
   bool collect(const Job& job, Worker& w);
   void resolve_by_walking(const Job& job, Worker& w, bool from_next_cell);
@@ -139,6 +141,9 @@ class FrustumCaster {
   bool try_fill(const Job& job, const Incidence* list, uint32_t n, uint32_t element, Worker& w);
   bool fill_plane(const Job& job, const Incidence* list, uint32_t n, const std::array<Ray, 4>& rays,
                   const std::array<double, 4>& tmins, Worker& w);
+  bool corners_on_triangle(const Triangle& tri, const std::array<Ray, 4>& rays, const std::array<double, 4>& tmins,
+                           const Aabb* cell, Vec3& normal, double& max_t, Worker& w) const;
+  void fill_from_plane(const Job& job, uint32_t element, const Vec3& normal, Worker& w);
   void split(const Job& job, const Incidence* list, uint32_t n, Worker& w);
   bool claim(const Job& job, int x, int y, size_t i) const;
   void confirm(const Job& job, int x, int y, uint32_t prim, double t, const Ray& ray, Worker& w);
