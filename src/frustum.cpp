@@ -537,7 +537,9 @@ RayHit FrustumCaster::walk_pixel(int x, int y, const Ray& ray, double tmin, int3
     const KdTree::Exit e = tree_.exit(cell, ray);
     const double tmax = e.t + cell_slack(e.t, slack_scale_);
     RayHit best;
-    if (first_pixel_visit(cell)) {
+    if (tree_.cell(cell).count == 0) {
+      // Nothing to list or test.
+    } else if (first_pixel_visit(cell)) {
       // The first pixel to cross a cell no frustum has listed this frame tests its references
       // directly: listing them (screen rectangles, sorted) pays only when more pixels follow,
       // and through a fine tree seen from afar most cells are crossed by a pixel or two. The
