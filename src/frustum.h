@@ -19,8 +19,9 @@
 //   advance asks the whole tree which elements could lie in it beyond its cell (node bounds,
 //   then each element's own shape against the frustum's planes); when at most four do, its
 //   pixels test only those (or, when the corners all hit one of them, a triangle, take their
-//   distance from its plane as fill_plane does), and when none does, it is background. This replaces the strips of
-//   lone walks along the images of cell boundaries over floors and open sky (gather_ahead);
+//   distance from its plane as fill_plane does), and when none does, it is background. This
+//   replaces the strips of lone walks along the images of cell boundaries over floors and
+//   open sky (gather_ahead);
 // - near plane; eye outside the root (§4 special case);
 // - the job queue of §5.2: levels of a breadth-first subdivision, each level interleaved across
 //   the screen, interruptible between jobs by a time or sample budget, resumable next frame.

@@ -62,11 +62,14 @@ bool Scene::bounding_sphere(uint32_t i, Vec3& centre, double& radius) const {
 
 bool Scene::below_plane(uint32_t i, const Vec3& origin, const Vec3& normal) const {
   const PrimRef& r = prims[i];
-  double top = -kInfinity, scale = 0.0;  // the largest signed distance, and its terms' size
+  // The largest signed distance, and the size of what it is computed from: the margin covers
+  // the rounding of q - origin far from the world's origin and of the dot product.
+  double top = -kInfinity, scale = 0.0;
+  const double n_length = glm::length(normal);
   auto point = [&](const Vec3& q, double reach) {
-    const double s = glm::dot(normal, q - origin);
-    top = std::max(top, s + reach);
-    scale = std::max(scale, std::abs(s) + reach);
+    const Vec3 d = q - origin;
+    top = std::max(top, glm::dot(normal, d) + reach);
+    scale = std::max(scale, n_length * (glm::length(d) + 1e-6 * glm::length(q)) + reach);
   };
   switch (r.kind) {
     case PrimKind::Triangle: {
@@ -78,7 +81,7 @@ bool Scene::below_plane(uint32_t i, const Vec3& origin, const Vec3& normal) cons
     }
     case PrimKind::Sphere: {
       const Sphere& s = spheres[r.index];
-      point(s.center, std::abs(s.radius) * glm::length(normal));
+      point(s.center, std::abs(s.radius) * n_length);
       break;
     }
     case PrimKind::Cone: {
