@@ -537,19 +537,18 @@ RayHit FrustumCaster::walk_pixel(int x, int y, const Ray& ray, double tmin, int3
     const KdTree::Exit e = tree_.exit(cell, ray);
     const double tmax = e.t + cell_slack(e.t, slack_scale_);
     RayHit best;
-    if (tree_.cell(cell).count == 0) {
-      // Nothing to list or test.
-    } else if (first_pixel_visit(cell)) {
+    // An empty cell is passed without a list or a first-visit check.
+    const KdTree::Cell& c = tree_.cell(cell);
+    if (c.count > 0 && first_pixel_visit(cell)) {
       // The first pixel to cross a cell no frustum has listed this frame tests its references
       // directly: listing them (screen rectangles, sorted) pays only when more pixels follow,
       // and through a fine tree seen from afar most cells are crossed by a pixel or two. The
       // nearest hit is the same either way (the list only skips references that cannot win).
-      const KdTree::Cell& c = tree_.cell(cell);
       w.counters.primitives_tested += c.count;
       for (uint32_t r = c.first; r < c.first + c.count; ++r) {
         offer(tree_.ref(r), ray, tmin, tmax, best, w.counters);
       }
-    } else {
+    } else if (c.count > 0) {
       const std::vector<Incidence>& entries = cell_entries(cell);
       w.counters.primitives_tested += entries.size();
       for (const Incidence& inc : entries) {
@@ -703,7 +702,7 @@ void FrustumCaster::process(Job job, Worker& w) {
     }
     // The frustum goes on through several cells. Before splitting it, ask the tree whether
     // only a few elements (or none) lie ahead of it: then its pixels test just those.
-    if (!job.small(leaf_) && job.small(kAheadMaxSpan * leaf_) && gather_ahead(job, w)) {
+    if (!job.small(leaf_) && job.small(kAheadMaxSpan * leaf_) && gather_ahead(job, rays, w)) {
       ++w.counters.frustum_lookaheads;
       resolve_against_ahead(job, rays, tmins, w);
       return;
@@ -726,7 +725,7 @@ void FrustumCaster::process(Job job, Worker& w) {
 // current cell (the frustum crossed those cells whole), and leaves the current cell through a
 // face its direction points to, so what lies ahead is beyond that face. On success, the cells
 // whose references it read count as touched.
-bool FrustumCaster::gather_ahead(const Job& job, Worker& w) const {
+bool FrustumCaster::gather_ahead(const Job& job, const std::array<Ray, 4>& rays, Worker& w) const {
   std::array<Vec3, 7> planes = {column_normal_[size_t(job.x0)], -column_normal_[size_t(job.x1)],
                                 row_normal_[size_t(job.y0)], -row_normal_[size_t(job.y1)]};
   size_t plane_count = 4;
@@ -736,11 +735,9 @@ bool FrustumCaster::gather_ahead(const Job& job, Worker& w) const {
   const Aabb& here = tree_.cell(job.cell).bounds;
   std::array<bool, 3> pos{}, neg{};
   for (int a = 0; a < 3; ++a) {
-    for (int k = 0; k < 4; ++k) {
-      const int x = (k & 1) ? job.x1 : job.x0, y = (k & 2) ? job.y1 : job.y0;
-      const double d = view_.direction(x, y)[a];
-      pos[size_t(a)] = pos[size_t(a)] || d >= 0.0;
-      neg[size_t(a)] = neg[size_t(a)] || d <= 0.0;
+    for (const Ray& corner : rays) {  // every direction of the frustum is a blend of these
+      pos[size_t(a)] = pos[size_t(a)] || corner.dir[a] >= 0.0;
+      neg[size_t(a)] = neg[size_t(a)] || corner.dir[a] <= 0.0;
     }
     if (pos[size_t(a)] != neg[size_t(a)]) {
       Vec3 n{0.0};

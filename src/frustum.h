@@ -113,7 +113,7 @@ class FrustumCaster {
   void process(Job job, Worker& w);
   Side classify(const Vec3& normal, const Aabb& box) const;
   bool in_front(const Aabb& box) const;
-  bool gather_ahead(const Job& job, Worker& w) const;
+  bool gather_ahead(const Job& job, const std::array<Ray, 4>& rays, Worker& w) const;
   void resolve_against_ahead(const Job& job, const std::array<Ray, 4>& rays, const std::array<double, 4>& tmins,
                              Worker& w);
   bool classify_planes(int x0, int x1, int y0, int y1, const Aabb& box, uint8_t planes, uint8_t& straddle) const;

@@ -90,8 +90,8 @@ bool Scene::below_plane(uint32_t i, const Vec3& origin, const Vec3& normal) cons
       const Cone& c = cones[r.index];
       const Vec3 axis = c.apex - c.base;
       const double length = glm::length(axis);
-      const double nn = glm::dot(normal, normal);
-      double across = std::sqrt(nn);
+      const double nn = n_length * n_length;
+      double across = n_length;
       if (length > 0.0) {
         const double along = glm::dot(normal, axis) / length;
         // The difference cancels when the normal runs along the axis: 1e-12 nn covers it.
