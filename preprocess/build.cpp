@@ -94,6 +94,7 @@ class TempDir {
     if (!path_.empty()) fs::remove_all(path_, ec);
   }
   std::string file(const std::string& name) const { return (fs::path(path_) / name).string(); }
+  const std::string& path() const { return path_; }
 
  private:
   std::string path_;
@@ -248,7 +249,7 @@ class StoreBuilder {
       const double voxel = options_.sdf_voxel > 0.0 ? options_.sdf_voxel : WalkableGridBuilder::default_voxel_size(bounds_);
       const int band = WalkableGridBuilder::band_voxels_for_radius(options_.walk_radius, voxel);
       if (Status s = WalkableGridBuilder::check_options(voxel, band); !s) return s;
-      grid_.emplace(voxel, band);
+      grid_.emplace(voxel, band, temp_->path());
       info_.sdf_voxel = voxel;
       info_.walk_radius = options_.walk_radius;
     }
@@ -722,11 +723,19 @@ class StoreBuilder {
     info_.degenerate_dropped = report_.degenerate_dropped;
     info_.cell_prims = options_.cell_prims;
     if (grid_) {
-      auto bytes = grid_->finish();
+      // Every brick becomes a page as soon as it is assembled; the section is their table.
+      auto bytes = grid_->finish([&](std::vector<uint8_t> brick) -> Result<uint64_t> {
+        auto id = writer_->add_page(sdf_format::kBrickCodec, brick);
+        if (!id) return id.status();
+        report_.sdf_bytes += brick.size() + store::kBlockTrailerSize;
+        ++report_.sdf_bricks;
+        return uint64_t(*id);
+      });
       if (!bytes) return bytes.status();
       if (Status s = writer_->add_section(kSdfSection, *bytes); !s) return s;
-      report_.sdf_bytes = bytes->size();
+      report_.sdf_bytes += bytes->size();
       report_.sdf_memory = grid_->memory_bytes();
+      report_.sdf_spill_bytes = grid_->spill_bytes();
       info_.walkable = true;
     }
     if (Status s = writer_->add_section(kModelSection, info_.to_bytes()); !s) return s;

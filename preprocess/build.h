@@ -86,8 +86,10 @@ struct BuildReport {
   uint64_t store_bytes = 0;
   uint64_t spill_bytes = 0;             // written to temporary files
   uint64_t page_bytes = 0;              // payloads of all pages
-  uint64_t sdf_bytes = 0;               // the collision grid section (--walkable)
-  uint64_t sdf_memory = 0;              // memory the grid held at the end of the build
+  uint64_t sdf_bytes = 0;               // the collision grid: its section and brick pages (--walkable)
+  uint64_t sdf_bricks = 0;              // brick pages of the collision grid
+  uint64_t sdf_memory = 0;              // most memory the grid held across partitions (index + a brick)
+  uint64_t sdf_spill_bytes = 0;         // the grid's temporary spill file
   std::string portals_sidecar;          // the sidecar the portals section came from (empty: none)
   uint64_t portal_rooms = 0;
   uint64_t portals = 0;

@@ -50,8 +50,9 @@ int main(int argc, char** argv) {
   app.add_option("--threads", options.threads, "threads that build and encode parts (0: all cores); reading and "
                  "partitioning use a reader thread besides")->default_val(0);
   app.add_flag("--walkable", options.walkable,
-               "add a sparse OpenVDB distance grid for walk-mode collision (also when a MODEL.json sidecar "
-               "says \"walkable\": true)");
+               "add a sparse OpenVDB distance grid for walk-mode collision, built out of core (spilled beside "
+               "the output) and stored as 64^3-voxel brick pages (also when a MODEL.json sidecar says "
+               "\"walkable\": true)");
   bool no_walkable = false;
   auto* no_walk = app.add_flag("--no-walkable", no_walkable, "no collision grid, whatever a sidecar says");
   no_walk->excludes(app.get_option("--walkable"));
@@ -97,9 +98,9 @@ int main(int argc, char** argv) {
                              r.ingest_seconds, r.spill_seconds, r.build_seconds, r.encode_seconds)
                      .c_str());
     if (options.walkable) {
-      std::fprintf(stderr, "  collision grid: %.1f MB in the store, %.1f MB in memory%s\n",
-                   static_cast<double>(r.sdf_bytes) / 1e6, static_cast<double>(r.sdf_memory) / 1e6,
-                   r.sdf_memory > options.memory ? " (more than --memory: the grid is not paged yet)" : "");
+      std::fprintf(stderr, "  collision grid: %.1f MB in the store (%llu bricks), %.1f MB in memory, %.1f MB spilled\n",
+                   static_cast<double>(r.sdf_bytes) / 1e6, static_cast<unsigned long long>(r.sdf_bricks),
+                   static_cast<double>(r.sdf_memory) / 1e6, static_cast<double>(r.sdf_spill_bytes) / 1e6);
     }
     if (!r.portals_sidecar.empty()) {
       std::fprintf(stderr, "  cells and portals: %llu rooms, %llu portals from %s\n",

@@ -8,14 +8,24 @@
 
 #include "src/collision_grid.h"
 #include "src/tessellate.h"
+#include "store/page_format.h"
 
 #include <openvdb/openvdb.h>
 #include <openvdb/io/Stream.h>
 
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_pipeline.h>
+
+#include <unistd.h>
 
 #include <algorithm>
+#include <array>
+#include <bit>
 #include <cassert>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <map>
 #include <cmath>
 #include <exception>
 #include <mutex>
@@ -68,12 +78,40 @@ struct IndexTriangle {
 
 using Accessor = openvdb::tree::ValueAccessor<openvdb::FloatTree>;
 
+// One slab's voxels of one brick, as leaf records in the spill file.
+struct Chunk {
+  uint64_t offset;
+  uint64_t size;
+};
+using BrickKey = std::array<int32_t, 3>;
+
+// Leaf records: origin i32 x 3 | active mask u64 x 8 | the active values in mask order (float).
+void put_leaf(std::vector<uint8_t>& out, const openvdb::FloatTree::LeafNodeType& leaf) {
+  const auto put = [&](const void* p, size_t n) {
+    const auto* b = static_cast<const uint8_t*>(p);
+    out.insert(out.end(), b, b + n);
+  };
+  const openvdb::Coord o = leaf.origin();
+  const int32_t origin[3] = {o.x(), o.y(), o.z()};
+  put(origin, sizeof origin);
+  const auto& mask = leaf.getValueMask();
+  for (openvdb::Index w = 0; w < openvdb::FloatTree::LeafNodeType::NodeMaskType::WORD_COUNT; ++w) {
+    const uint64_t word = mask.getWord<uint64_t>(w);
+    put(&word, sizeof word);
+  }
+  for (auto v = leaf.cbeginValueOn(); v; ++v) {
+    const float value = *v;
+    put(&value, sizeof value);
+  }
+}
+
 }  // namespace
 
 struct WalkableGridBuilder::Impl {
   double voxel;
   int band;
-  openvdb::FloatGrid::Ptr grid;  // the accumulated band, world transform
+  float far;  // band * voxel, the background
+  openvdb::math::Transform::Ptr xform;  // index -> world
   bool have_origin = false;
   // The lattice origin in voxels (integers): index coordinates are p / h - origin_index, which is
   // exact in the subtraction, so every partition (whichever came first) computes bit-identical
@@ -81,24 +119,54 @@ struct WalkableGridBuilder::Impl {
   Vec3 origin_index{0.0};
   Stats stats;
 
+  // The spill: every slab's band, cut by brick, appended as it is rasterized; the index says where
+  // each brick's pieces are. An unlinked temporary file: it vanishes with the process.
+  std::FILE* spill = nullptr;
+  uint64_t spill_size = 0;
+  std::map<BrickKey, std::vector<Chunk>> index;
+  Status spill_error;
+  uint64_t chunks = 0;
+  uint64_t finished_active = 0;  // active voxels of the last finish()
+  uint64_t peak_brick_bytes = 0;
+
   // Per partition: the voxels it may write and its triangles, in index space (voxel centres at
   // integer points), gathered first so that slabs of the write box can be filled in parallel.
   openvdb::CoordBBox write;
   std::vector<IndexTriangle> tris;
 
-  Impl(double voxel_size, int band_voxels) : voxel(voxel_size), band(band_voxels) {
+  Impl(double voxel_size, int band_voxels, const std::string& spill_dir)
+      : voxel(voxel_size), band(band_voxels), far(float(band_voxels * voxel_size)) {
     ensure_openvdb_initialized();
-    grid = openvdb::FloatGrid::create(float(band * voxel));
-    grid->setTransform(openvdb::math::Transform::createLinearTransform(voxel));
+    xform = openvdb::math::Transform::createLinearTransform(voxel);
+    if (spill_dir.empty()) {
+      spill = std::tmpfile();
+    } else {
+      std::string name = spill_dir + "/sdf-spill-XXXXXX";
+      const int fd = ::mkstemp(name.data());
+      if (fd >= 0) {
+        ::unlink(name.c_str());
+        spill = ::fdopen(fd, "w+b");
+        if (spill == nullptr) ::close(fd);
+      }
+    }
+    if (spill == nullptr) {
+      spill_error = Status::io_error("walkable grid: cannot create a spill file in " +
+                                     (spill_dir.empty() ? std::string("the temporary directory") : spill_dir) +
+                                     ": " + std::strerror(errno));
+    }
   }
+  ~Impl() {
+    if (spill != nullptr) std::fclose(spill);
+  }
+  Impl(const Impl&) = delete;
+  Impl& operator=(const Impl&) = delete;
 
   void set_origin(const Vec3& center) {
     origin_index = glm::round(center / voxel);
     const Vec3 origin = origin_index * voxel;
     have_origin = true;
-    openvdb::math::Transform::Ptr xform = openvdb::math::Transform::createLinearTransform(voxel);
+    xform = openvdb::math::Transform::createLinearTransform(voxel);
     xform->postTranslate(openvdb::Vec3d(origin.x, origin.y, origin.z));
-    grid->setTransform(xform);
   }
 
   // Voxels of `box` the band of triangle t can reach; false when there are none.
@@ -171,16 +239,31 @@ struct WalkableGridBuilder::Impl {
     return written;
   }
 
-  // Min-merges a slab's tree into the accumulated band. REQUIRES: the caller holds the lock.
-  void merge(const openvdb::FloatTree& slab) {
-    openvdb::FloatTree& dst_tree = grid->tree();
-    for (auto leaf = slab.cbeginLeaf(); leaf; ++leaf) {
-      openvdb::FloatTree::LeafNodeType* dst = dst_tree.touchLeaf(leaf->origin());
-      for (auto v = leaf->cbeginValueOn(); v; ++v) {
-        const openvdb::Index i = v.pos();
-        if (!dst->isValueOn(i) || *v < dst->getValue(i)) dst->setValueOn(i, *v);
+  // Appends a slab's tree to the spill, one chunk per brick it touches.
+  // REQUIRES: the caller holds the lock.
+  void spill_slab(const std::map<BrickKey, std::vector<uint8_t>>& pieces) {
+    for (const auto& [key, bytes] : pieces) {
+      if (!spill_error.is_ok()) return;
+      if (std::fwrite(bytes.data(), 1, bytes.size(), spill) != bytes.size()) {
+        spill_error = Status::io_error(std::string("walkable grid: writing the spill file failed: ") +
+                                       std::strerror(errno));
+        return;
       }
+      index[key].push_back(Chunk{spill_size, bytes.size()});
+      spill_size += bytes.size();
+      ++chunks;
     }
+  }
+
+  // A slab's leaves as leaf records, grouped by the brick each leaf lies in.
+  static std::map<BrickKey, std::vector<uint8_t>> cut_into_bricks(const openvdb::FloatTree& slab) {
+    std::map<BrickKey, std::vector<uint8_t>> pieces;
+    using sdf_format::kBrickLog2;
+    for (auto leaf = slab.cbeginLeaf(); leaf; ++leaf) {
+      const openvdb::Coord o = leaf->origin();
+      put_leaf(pieces[BrickKey{o.x() >> kBrickLog2, o.y() >> kBrickLog2, o.z() >> kBrickLog2}], *leaf);
+    }
+    return pieces;
   }
 
   // Fills the write box slab by slab (leaf-aligned along its longest axis), in parallel; each
@@ -218,12 +301,13 @@ struct WalkableGridBuilder::Impl {
       box.min()[axis] = std::max(write.min()[axis], int(start[size_t(s)]));
       box.max()[axis] = std::min(write.max()[axis], int(start[size_t(s) + 1]) - 1);
       if (box.empty()) return;
-      openvdb::FloatTree local(grid->background());
+      openvdb::FloatTree local(far);
       Accessor out(local);
       uint64_t written = 0;
       for (uint32_t i : buckets[size_t(s)]) written += rasterize(tris[i], box, out);
+      const std::map<BrickKey, std::vector<uint8_t>> pieces = cut_into_bricks(local);
       const std::lock_guard<std::mutex> lock(merge_lock);
-      merge(local);
+      spill_slab(pieces);
       stats.voxels_written += written;
     });
   }
@@ -254,6 +338,7 @@ struct WalkableGridBuilder::Impl {
   }
 
   Status add_partition(const Scene& part, const Aabb& region) {
+    if (!spill_error.is_ok()) return spill_error;
     ++stats.partitions;
     stats.primitives += part.size();
     for (int a = 0; a < 3; ++a) {
@@ -292,8 +377,160 @@ struct WalkableGridBuilder::Impl {
     if (!st.is_ok()) return st;
     stats.triangles_meshed += tris.size();
     rasterize_all();
-    std::vector<IndexTriangle>().swap(tris);  // only the band survives the partition
+    std::vector<IndexTriangle>().swap(tris);  // only the spilled band survives the partition
+    return spill_error;
+  }
+
+  // Reads brick `key`'s chunks back and merges them by minimum into one tree.
+  Status assemble(const std::vector<Chunk>& pieces, openvdb::FloatTree& tree) const {
+    using LeafT = openvdb::FloatTree::LeafNodeType;
+    constexpr size_t kWords = LeafT::NodeMaskType::WORD_COUNT;
+    std::vector<uint8_t> buf;
+    for (const Chunk& c : pieces) {
+      buf.resize(c.size);
+      size_t done = 0;
+      while (done < c.size) {
+        const ssize_t n = ::pread(::fileno(spill), buf.data() + done, c.size - done, off_t(c.offset + done));
+        if (n <= 0) {
+          return Status::io_error(std::string("walkable grid: reading the spill file failed: ") +
+                                  (n < 0 ? std::strerror(errno) : "unexpected end"));
+        }
+        done += size_t(n);
+      }
+      size_t at = 0;
+      while (at < buf.size()) {
+        int32_t origin[3];
+        uint64_t words[kWords];
+        assert(at + sizeof origin + sizeof words <= buf.size());
+        std::memcpy(origin, buf.data() + at, sizeof origin);
+        std::memcpy(words, buf.data() + at + sizeof origin, sizeof words);
+        at += sizeof origin + sizeof words;
+        LeafT* leaf = tree.touchLeaf(openvdb::Coord(origin[0], origin[1], origin[2]));
+        for (size_t w = 0; w < kWords; ++w) {
+          for (uint64_t bits = words[w]; bits != 0; bits &= bits - 1) {
+            const openvdb::Index i = openvdb::Index(64 * w + size_t(std::countr_zero(bits)));
+            float v;
+            assert(at + sizeof v <= buf.size());
+            std::memcpy(&v, buf.data() + at, sizeof v);
+            at += sizeof v;
+            if (!leaf->isValueOn(i) || v < leaf->getValue(i)) leaf->setValueOn(i, v);
+          }
+        }
+      }
+    }
     return Status::ok();
+  }
+
+  // One brick's tree as an OpenVDB stream (zip), deterministic bytes.
+  std::vector<uint8_t> brick_stream(openvdb::FloatTree::Ptr tree) const {
+    openvdb::FloatGrid::Ptr grid = openvdb::FloatGrid::create(tree);
+    grid->setName(sdf_format::kGridName);
+    grid->setGridClass(openvdb::GRID_UNKNOWN);  // not a level set: the distance is unsigned
+    grid->setTransform(xform->copy());
+    std::ostringstream out(std::ios::binary);
+    openvdb::io::Stream stream(out);
+    stream.setCompression(openvdb::io::COMPRESS_ZIP | openvdb::io::COMPRESS_ACTIVE_MASK);
+    stream.write(openvdb::GridCPtrVec{grid});
+    std::string bytes = std::move(out).str();
+    // The archive header carries a random UUID per write; the nil UUID instead makes the same
+    // model give byte-identical pages (OpenVDB uses it only to recognise reopened files).
+    const std::string tag = stream.getUniqueTag();
+    const size_t at = bytes.find(tag);
+    if (!tag.empty() && at != std::string::npos && at < 64) {
+      bytes.replace(at, tag.size(), "00000000-0000-0000-0000-000000000000");
+    }
+    return std::vector<uint8_t>(bytes.begin(), bytes.end());
+  }
+
+  Result<std::vector<uint8_t>> finish(const BrickSink& sink) {
+    if (!spill_error.is_ok()) return spill_error;
+    if (std::fflush(spill) != 0) {
+      return Status::io_error(std::string("walkable grid: writing the spill file failed: ") + std::strerror(errno));
+    }
+    // Bricks are assembled and compressed in parallel, a few at a time, and handed to the sink
+    // in coordinate order.
+    struct Brick {
+      const BrickKey* key = nullptr;
+      const std::vector<Chunk>* pieces = nullptr;
+      Status status;
+      std::vector<uint8_t> stream;
+      uint64_t count = 0, bytes = 0;
+      openvdb::CoordBBox box;
+    };
+    using BrickPtr = std::shared_ptr<Brick>;
+    const size_t in_flight = 2 * size_t(std::max(1u, std::thread::hardware_concurrency()));
+    std::vector<uint8_t> table;
+    uint64_t bricks = 0, active = 0;
+    Status failed;
+    auto next = index.begin();
+    tbb::parallel_pipeline(
+        in_flight,
+        tbb::make_filter<void, BrickPtr>(tbb::filter_mode::serial_in_order,
+                                         [&](tbb::flow_control& fc) -> BrickPtr {
+                                           if (next == index.end() || !failed.is_ok()) {
+                                             fc.stop();
+                                             return nullptr;
+                                           }
+                                           auto b = std::make_shared<Brick>();
+                                           b->key = &next->first;
+                                           b->pieces = &next->second;
+                                           ++next;
+                                           return b;
+                                         }) &
+            tbb::make_filter<BrickPtr, BrickPtr>(tbb::filter_mode::parallel,
+                                                 [&](BrickPtr b) {
+                                                   try {
+                                                     auto tree = std::make_shared<openvdb::FloatTree>(far);
+                                                     b->status = assemble(*b->pieces, *tree);
+                                                     if (!b->status.is_ok()) return b;
+                                                     tree->prune();
+                                                     b->count = tree->activeVoxelCount();
+                                                     if (b->count == 0) return b;
+                                                     tree->evalActiveVoxelBoundingBox(b->box);
+                                                     b->bytes = tree->memUsage();
+                                                     b->stream = brick_stream(tree);
+                                                   } catch (const std::exception& e) {
+                                                     b->status = Status::invalid_argument(
+                                                         std::string("walkable grid: OpenVDB: ") + e.what());
+                                                   }
+                                                   return b;
+                                                 }) &
+            tbb::make_filter<BrickPtr, void>(tbb::filter_mode::serial_in_order, [&](BrickPtr b) {
+              if (!failed.is_ok()) return;
+              if (!b->status.is_ok()) {
+                failed = b->status;
+                return;
+              }
+              if (b->count == 0) return;
+              peak_brick_bytes = std::max(peak_brick_bytes, b->bytes);
+              auto page = sink(std::move(b->stream));
+              if (!page) {
+                failed = page.status();
+                return;
+              }
+              const BrickKey& key = *b->key;
+              for (int32_t v : {key[0], key[1], key[2], b->box.min().x(), b->box.min().y(), b->box.min().z(),
+                                b->box.max().x(), b->box.max().y(), b->box.max().z()}) {
+                store::put_u32(table, uint32_t(v));
+              }
+              store::put_u64(table, *page);
+              store::put_u64(table, b->count);
+              ++bricks;
+              active += b->count;
+            }));
+    if (!failed.is_ok()) return failed;
+    std::vector<uint8_t> payload;
+    const double h = voxel;
+    const auto* hb = reinterpret_cast<const uint8_t*>(&h);
+    payload.insert(payload.end(), hb, hb + sizeof h);
+    store::put_u32(payload, uint32_t(band));
+    store::put_u32(payload, uint32_t(sdf_format::kBrickVoxels));
+    for (int a = 0; a < 3; ++a) store::put_u64(payload, uint64_t(int64_t(origin_index[a])));
+    store::put_u64(payload, bricks);
+    store::put_u64(payload, active);
+    payload.insert(payload.end(), table.begin(), table.end());
+    finished_active = active;
+    return sdf_format::frame(payload);
   }
 };
 
@@ -329,9 +566,9 @@ int WalkableGridBuilder::band_voxels_for_radius(double radius, double voxel_size
   return band;
 }
 
-WalkableGridBuilder::WalkableGridBuilder(double voxel_size, int band_voxels) {
+WalkableGridBuilder::WalkableGridBuilder(double voxel_size, int band_voxels, const std::string& spill_dir) {
   assert(check_options(voxel_size, band_voxels).is_ok());
-  impl_ = std::make_unique<Impl>(voxel_size, band_voxels);
+  impl_ = std::make_unique<Impl>(voxel_size, band_voxels, spill_dir);
 }
 WalkableGridBuilder::WalkableGridBuilder(WalkableGridBuilder&&) noexcept = default;
 WalkableGridBuilder& WalkableGridBuilder::operator=(WalkableGridBuilder&&) noexcept = default;
@@ -345,38 +582,35 @@ Status WalkableGridBuilder::add_partition(const Scene& part, const Aabb& region)
   }
 }
 
-Result<std::vector<uint8_t>> WalkableGridBuilder::finish() {
+Result<std::vector<uint8_t>> WalkableGridBuilder::finish(const BrickSink& sink) {
   try {
-    openvdb::FloatGrid& grid = *impl_->grid;
-    grid.tree().prune();
-    grid.setName(sdf_format::kGridName);
-    grid.setGridClass(openvdb::GRID_UNKNOWN);  // not a level set: the distance is unsigned
-    grid.insertMeta(sdf_format::kMetaVoxelSize, openvdb::DoubleMetadata(impl_->voxel));
-    grid.insertMeta(sdf_format::kMetaBandVoxels, openvdb::Int32Metadata(impl_->band));
-    grid.insertMeta(sdf_format::kMetaDistance, openvdb::StringMetadata("unsigned"));
-    std::ostringstream out(std::ios::binary);
-    openvdb::io::Stream stream(out);
-    stream.setCompression(openvdb::io::COMPRESS_ZIP | openvdb::io::COMPRESS_ACTIVE_MASK);
-    stream.write(openvdb::GridCPtrVec{impl_->grid});
-    std::string bytes = std::move(out).str();
-    // The archive header carries a random UUID per write; the nil UUID instead makes the same
-    // model give byte-identical sections (OpenVDB uses it only to recognise reopened files).
-    const std::string tag = stream.getUniqueTag();
-    const size_t at = bytes.find(tag);
-    if (!tag.empty() && at != std::string::npos && at < 64) {
-      bytes.replace(at, tag.size(), "00000000-0000-0000-0000-000000000000");
-    }
-    return sdf_format::frame(
-        std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()));
+    return impl_->finish(sink);
   } catch (const std::exception& e) {
     return Status::invalid_argument(std::string("walkable grid: OpenVDB: ") + e.what());
   }
 }
 
+Result<SdfImage> WalkableGridBuilder::finish() {
+  SdfImage image;
+  auto section = finish([&](std::vector<uint8_t> page) -> Result<uint64_t> {
+    image.pages.push_back(store::encode_page(sdf_format::kBrickCodec, page));
+    return uint64_t(image.pages.size() - 1);
+  });
+  if (!section) return section.status();
+  image.section = std::move(*section);
+  return image;
+}
+
 double WalkableGridBuilder::voxel_size() const { return impl_->voxel; }
 int WalkableGridBuilder::band_voxels() const { return impl_->band; }
 const WalkableGridBuilder::Stats& WalkableGridBuilder::stats() const { return impl_->stats; }
-uint64_t WalkableGridBuilder::active_voxels() const { return impl_->grid->activeVoxelCount(); }
-uint64_t WalkableGridBuilder::memory_bytes() const { return impl_->grid->memUsage(); }
+uint64_t WalkableGridBuilder::active_voxels() const { return impl_->finished_active; }
+uint64_t WalkableGridBuilder::memory_bytes() const {
+  // The spill index (a map node per brick, a chunk record per piece) and the largest brick.
+  // finish() holds up to two bricks per hardware thread at once.
+  const uint64_t in_flight = 2 * uint64_t(std::max(1u, std::thread::hardware_concurrency()));
+  return impl_->index.size() * 96 + impl_->chunks * sizeof(Chunk) + in_flight * impl_->peak_brick_bytes;
+}
+uint64_t WalkableGridBuilder::spill_bytes() const { return impl_->spill_size; }
 
 }  // namespace frontier

@@ -1,7 +1,12 @@
 // The walk-mode collision grid, built out of core: the preprocessor hands over its spatial
-// partitions one at a time and the builder keeps only the sparse narrow band of an OpenVDB
-// distance grid across them. finish() yields the store's "sdf" section (layout in
-// src/collision_grid.h, whose CollisionGrid reads it in the viewer).
+// partitions one at a time; the builder rasterizes each into the sparse narrow band of an OpenVDB
+// distance grid and spills that band to a temporary file at once, cut into 64^3-voxel bricks.
+// finish() reads the spill back brick by brick, merges each brick's pieces, hands every brick to a
+// sink as one OpenVDB stream (the store makes it a page) and returns the store's "sdf" section,
+// the brick table (layout in src/collision_grid.h, whose CollisionGrid pages the bricks in the
+// viewer). Memory: the partition's triangles, a few slabs' band in flight, the spill index and, in
+// finish(), one brick; never the whole grid (which for a 20 M-triangle building at 10 cm is about
+// 2.4 GB in memory, 257 MB serialized).
 //
 // Unsigned distance, not signed: building models are not closed (a wall is often one quad, a
 // floor a single-sided slab, scanned meshes have holes), so inside/outside is undefined and a
@@ -27,17 +32,18 @@
 //  * Voxel values are exact: the distance to the nearest triangle, computed in double, stored as
 //    float in world units; active exactly when closer than the band W = band * h, otherwise
 //    inactive and reading W.
-//  * A partition writes only the voxels inside its region padded by (band + 1) voxels, and
-//    merges them by minimum with what is there, so the result equals a one-shot build (the tests
+//  * A partition writes only the voxels inside its region padded by (band + 1) voxels; finish()
+//    merges every voxel's pieces by minimum, so the result equals a one-shot build (the tests
 //    check voxel for voxel) provided each partition holds every primitive that overlaps its
 //    region (straddling primitives referenced from both sides, as the k-d partitioning does) and
 //    the regions cover the model: a voxel's nearest surface point lies in some region whose
 //    partition both holds that primitive and writes that voxel. A triangle sticking far out of
 //    its region costs only its part inside the padded region.
-//  * Across partitions only the accumulated narrow band is kept; a partition's triangles and
-//    its per-slab scratch trees are released before add_partition returns. Note that the band
-//    itself grows with the model's surface: about 7 bytes per active voxel in memory and
-//    0.75 bytes per voxel serialized (measured: 1 M triangles, 5 cm voxels -> 77 M voxels).
+//  * Across partitions only the spill index is kept (a record per slab piece of a brick); a
+//    partition's triangles and its per-slab trees are released before add_partition returns.
+//    The spill holds about 4 bytes per voxel written plus 76 per leaf, and is unlinked at once
+//    (it vanishes with the process, even a killed one). The band grows with the model's surface:
+//    about 0.75 bytes per voxel in the store (measured: 1 M triangles, 5 cm voxels -> 77 M voxels).
 //
 // Primitives: triangles as they are; spheres, open cones and boxes are tessellated with a chord
 // error of at most h/16 (segment count capped at 256, reached only for spheres larger than about
@@ -45,15 +51,18 @@
 // kept out of the whole box; counted in Stats::quadrics_as_boxes).
 //
 // Thread safety: one thread drives a builder; add_partition fills leaf-aligned slabs of the
-// partition in parallel (TBB) and merges each into the band under a lock.
+// partition in parallel (TBB) and appends each to the spill under a lock.
 #pragma once
 
+#include "src/collision_grid.h"
 #include "src/geometry.h"
 #include "src/scene.h"
 #include "src/status.h"
 
 #include <cstdint>
+#include <functional>
 #include <memory>
+#include <string>
 #include <vector>
 
 namespace frontier {
@@ -84,8 +93,14 @@ class WalkableGridBuilder {
   // voxel of slack keeps the stopping distance away from the clamped band edge.
   static int band_voxels_for_radius(double radius, double voxel_size);
 
-  // REQUIRES: check_options(voxel_size, band_voxels) is ok.
-  explicit WalkableGridBuilder(double voxel_size, int band_voxels = kDefaultBandVoxels);
+  // Stores one brick (an OpenVDB stream) and returns the page number the section will name.
+  using BrickSink = std::function<Result<uint64_t>(std::vector<uint8_t> brick)>;
+
+  // REQUIRES: check_options(voxel_size, band_voxels) is ok. The spill file goes to spill_dir
+  // (the system's temporary directory when empty); failing to create it is reported by the
+  // first add_partition or finish.
+  explicit WalkableGridBuilder(double voxel_size, int band_voxels = kDefaultBandVoxels,
+                               const std::string& spill_dir = {});
   WalkableGridBuilder(WalkableGridBuilder&&) noexcept;
   WalkableGridBuilder& operator=(WalkableGridBuilder&&) noexcept;
   ~WalkableGridBuilder();
@@ -93,22 +108,28 @@ class WalkableGridBuilder {
   // Adds one partition: its primitives and its k-d region (primitives may stick out of it;
   // the region may be unbounded on some sides). InvalidArgument for a region with NaN, content
   // that is not finite, a model too large for the voxel size (more than 2^30 voxels from the
-  // first partition), or when OpenVDB fails (the message says why); the accumulated grid is then
-  // unchanged or holds a partial merge of this partition, and the caller should abandon the build.
+  // first partition), or when OpenVDB fails (the message says why); IoError when the spill
+  // cannot be written. The spill may then hold part of this partition: abandon the build.
   Status add_partition(const Scene& part, const Aabb& region);
 
-  // The "sdf" section bytes: the grid in an OpenVDB stream (zip-compressed, with the voxel size
-  // and band width as grid metadata) framed as src/collision_grid.h describes. Deterministic:
-  // the same partitions in the same order give the same bytes. The builder stays
-  // usable (more partitions may follow; finish() again gives the larger grid).
-  Result<std::vector<uint8_t>> finish();
+  // Hands every non-empty brick to `sink`, in brick coordinate order, and returns the "sdf"
+  // section bytes naming the pages the sink returned (src/collision_grid.h). Deterministic: the
+  // same partitions give the same bricks and bytes, whatever their order and the threads. The
+  // builder stays usable (more partitions may follow; finish() again gives the larger grid).
+  Result<std::vector<uint8_t>> finish(const BrickSink& sink);
+  // The same, with the bricks kept in memory (tests and small tools).
+  Result<SdfImage> finish();
 
   double voxel_size() const;
   int band_voxels() const;
   const Stats& stats() const;
+  // Active voxels of the grid the last finish() wrote (0 before).
   uint64_t active_voxels() const;
-  // Memory held across partitions (the accumulated grid), for the --memory budget report.
+  // Memory held across partitions and in finish(): the spill index and the bricks in flight
+  // (two per hardware thread, each counted as the largest so far), for the --memory budget report.
   uint64_t memory_bytes() const;
+  // Bytes appended to the spill file so far.
+  uint64_t spill_bytes() const;
 
  private:
   struct Impl;

@@ -12,20 +12,33 @@
 //
 //     |distance(p) - true distance(p)| <= sqrt(3)/2 * h + h/16 < 0.94 h    whenever both are < W.
 //
-// The "sdf" section layout (version 1), all integers little-endian:
+// The "sdf" section (version 2, paged), all integers little-endian:
 //   magic "FSDF" (4 B) | version u32 | payload size u64 | xxHash64(payload) u64 | payload
-// where payload is an OpenVDB stream (openvdb::io::Stream) holding one FloatGrid named
-// kGridName with metadata kMetaVoxelSize (double), kMetaBandVoxels (int32) and kMetaDistance
-// ("unsigned"). The checksum is what makes load() safe on damaged bytes: OpenVDB's own reader
-// is not hardened against arbitrary input, so it only ever sees bytes that passed the checksum.
+//   payload = voxel size f64 | band voxels i32 | brick voxels u32 (kBrickVoxels) |
+//             lattice origin i64 x 3 (in voxels) | brick count u64 | active voxels u64 |
+//             brick count x { brick coordinate i32 x 3 | active box min i32 x 3 | max i32 x 3 |
+//                             store page u64 | active voxels u64 }            (52 B each)
+// Index coordinates are world / voxel - origin; brick (i, j, k) holds the index voxels
+// [i, i + 1) * kBrickVoxels (and so on), and its voxels live in one store page (codec tag
+// kBrickCodec, checksummed by the store) holding an OpenVDB stream of one FloatGrid named
+// kGridName with background W. Bricks without active voxels are not stored: they read as W.
+// Version 1 (still read): the payload is one OpenVDB stream of the whole grid, with metadata
+// kMetaVoxelSize (double), kMetaBandVoxels (int32) and kMetaDistance ("unsigned"); it is all
+// resident once loaded. The checksums are what make loading safe on damaged bytes: OpenVDB's own
+// reader is not hardened against arbitrary input, so it only ever sees bytes that passed one.
 //
-// Memory: the whole grid is resident once loaded, about 7 bytes per active voxel (measured:
-// 67 MiB for a 100 k-triangle building at 5 cm voxels, 533 MiB for 1 M triangles); memory_bytes()
-// reports it for the working-set line.
+// Memory (version 2): bricks are read on demand, by the first query that needs one of their
+// voxels, and kept in an LRU cache with a byte budget (a brick is about 7 bytes per active voxel,
+// about 1-2 MiB for a 64^3 brick cut by walls and floors). The budget is exceeded only while a
+// query holds more bricks than fit (a query holds the bricks it touches until it returns: a
+// resolve() across several bricks). memory_bytes() reports the cached bricks for the working-set
+// line, with loads, evictions and load time in the counters. A brick that cannot be read (I/O
+// error, checksum, OpenVDB) reads as distance 0 everywhere, so the eye can never enter it: walk
+// mode stops there rather than walking through walls, and error() says why.
 //
-// Thread safety: a loaded CollisionGrid is immutable; every const member may be called from any
-// number of threads at once (each query uses its own unregistered tree accessor; the query
-// counter is atomic).
+// Thread safety: every const member may be called from any number of threads at once (the brick
+// cache is behind a mutex; loads happen under it; each query reads its bricks through its own
+// unregistered accessors; the counters are atomic).
 #pragma once
 
 #include "src/geometry.h"
@@ -33,36 +46,71 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <span>
 #include <vector>
 
 namespace frontier {
 
+namespace store {
+class StoreReader;
+}
+
 namespace sdf_format {
 inline constexpr std::array<uint8_t, 4> kMagic = {'F', 'S', 'D', 'F'};
 // Versions, oldest first; load() accepts versions <= kVersion and refuses newer ones cleanly.
 inline constexpr uint32_t kVersion1 = 1;  // unsigned distance FloatGrid in an OpenVDB stream
-inline constexpr uint32_t kVersion = kVersion1;
+inline constexpr uint32_t kVersion2 = 2;  // the grid cut into bricks, one store page each
+inline constexpr uint32_t kVersion = kVersion2;
 inline constexpr size_t kHeaderSize = 24;
 inline constexpr const char* kGridName = "frontier_collision";
 inline constexpr const char* kMetaVoxelSize = "frontier_voxel_size";
 inline constexpr const char* kMetaBandVoxels = "frontier_band_voxels";
 inline constexpr const char* kMetaDistance = "frontier_distance";  // value "unsigned"
 
-// Wraps an OpenVDB stream in the section header above (magic, version, size, checksum).
-std::vector<uint8_t> frame(std::span<const uint8_t> vdb_stream);
+inline constexpr int kBrickLog2 = 6;
+inline constexpr int kBrickVoxels = 1 << kBrickLog2;  // a brick is 64^3 voxels
+inline constexpr size_t kBrickEntrySize = 52;
+// Codec tag of brick pages (the store carries it and never interprets it; cell pages use the
+// cell codecs' tags, 0 and 1).
+inline constexpr uint8_t kBrickCodec = 0x53;  // 'S'
+
+// Wraps a payload in the section header above (magic, version, size, checksum).
+std::vector<uint8_t> frame(std::span<const uint8_t> payload, uint32_t version = kVersion);
+}  // namespace sdf_format
+
+// A whole collision grid held in memory: the section and the brick pages it names by index,
+// each framed as a store block (payload | codec kBrickCodec | checksum, store/page_format.h) so
+// that damaged bytes are caught before OpenVDB reads them, as in a store (tests and tools).
+struct SdfImage {
+  std::vector<uint8_t> section;
+  std::vector<std::vector<uint8_t>> pages;
+  friend bool operator==(const SdfImage&, const SdfImage&) = default;
+};
+
+namespace sdf_format {
 }  // namespace sdf_format
 
 // Registers OpenVDB's grid types; safe to call from any thread, any number of times (the work
 // happens once). Both the builder and CollisionGrid::load call it.
 void ensure_openvdb_initialized();
 
+// Reads one brick page's payload (checked by the store), naming the page in any error.
+using BrickSource = std::function<Result<std::vector<uint8_t>>(uint64_t page)>;
+
 class CollisionGrid {
  public:
-  // Corruption (naming what is wrong) for damaged, truncated or foreign bytes; Unsupported for a
-  // newer section version. Never throws, never crashes: OpenVDB exceptions are caught.
-  static Result<CollisionGrid> load(std::span<const uint8_t> bytes);
+  static constexpr uint64_t kDefaultBudget = uint64_t{64} << 20;
+
+  // Parses the section; bricks are read through `source` later, on demand, and cached within
+  // `budget_bytes`. Corruption (naming what is wrong) for damaged, truncated or foreign bytes;
+  // Unsupported for a newer section version. Never throws, never crashes: OpenVDB exceptions are
+  // caught. A version 1 section is loaded whole at once (source unused, budget not applied).
+  static Result<CollisionGrid> open(std::span<const uint8_t> section, BrickSource source,
+                                    uint64_t budget_bytes = kDefaultBudget);
+  // The same over an in-memory image (brick pages by index).
+  static Result<CollisionGrid> load(SdfImage image, uint64_t budget_bytes = kDefaultBudget);
 
   CollisionGrid(CollisionGrid&&) noexcept;
   CollisionGrid& operator=(CollisionGrid&&) noexcept;
@@ -110,7 +158,29 @@ class CollisionGrid {
   // without walk mode never loads a grid, so its viewer reports zero.
   uint64_t queries() const;
 
-  // Active voxels and the grid's memory (the viewer's working-set report counts it).
+  // Reads every brick once (evicting as it goes) and returns the first that fails, naming its
+  // page: frontier-store verify. Does not count as queries or change error().
+  Status check_all_bricks() const;
+  // The store pages of the bricks, in brick table order (empty for a version 1 grid).
+  std::vector<uint64_t> brick_pages() const;
+
+  struct Counters {
+    uint64_t bricks = 0;          // bricks in the section (1 for a version 1 grid)
+    uint64_t resident = 0;        // bricks in the cache now
+    uint64_t resident_bytes = 0;  // their memory (memory_bytes())
+    uint64_t budget_bytes = 0;
+    uint64_t loads = 0;           // brick pages read and decoded since open
+    uint64_t evictions = 0;
+    uint64_t largest_brick_bytes = 0;  // the most memory one loaded brick took
+    uint64_t errors = 0;          // bricks that could not be read (they read as solid)
+    double load_ms = 0.0;         // time spent reading and decoding bricks
+  };
+  Counters counters() const;
+  // The first brick that could not be read (ok while none failed).
+  Status error() const;
+
+  // Active voxels (all bricks, from the section) and the memory of the bricks resident now
+  // (the viewer's working-set report counts it).
   uint64_t active_voxels() const;
   uint64_t memory_bytes() const;
   // World bounds of the active voxel centres (empty for an empty grid).
@@ -121,5 +191,11 @@ class CollisionGrid {
   explicit CollisionGrid(std::unique_ptr<Impl> impl);
   std::unique_ptr<Impl> impl_;
 };
+
+// The grid of a store's "sdf" section, its bricks read as the store's checked pages (codec
+// kBrickCodec). NotFound without the section; errors name the store file. The reader must
+// outlive the grid.
+Result<std::unique_ptr<CollisionGrid>> open_collision_grid(const store::StoreReader& reader,
+                                                           uint64_t budget_bytes = CollisionGrid::kDefaultBudget);
 
 }  // namespace frontier

@@ -102,6 +102,8 @@ class Walker {
   // grid calls (distance, resolve, gradient) made by this walker; each counts one in
   // CollisionGrid::queries() too.
   uint64_t queries() const { return queries_; }
+  // The grid it walks on (its brick cache counters go into the viewer's working-set report).
+  const CollisionGrid& grid() const { return grid_; }
   // Times the feet left the floor (a drop deeper than step_height, or a fall on the first step).
   uint64_t falls() const { return falls_; }
   // Climbs: runs of consecutive pieces of horizontal motion, each rising at least 1 in 4, that

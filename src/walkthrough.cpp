@@ -2,6 +2,7 @@
 #include "src/walkthrough.h"
 
 #include "src/render.h"
+#include "src/walker.h"
 
 #include <nlohmann/json.hpp>
 
@@ -51,6 +52,10 @@ nlohmann::json FrameReport::to_json() const {
                       {"page_errors", page_errors},
                       {"resident_cells", resident_cells},
                       {"collision_queries", collision_queries},
+                      {"collision_bricks", collision_bricks},
+                      {"collision_bytes", collision_bytes},
+                      {"collision_loads", collision_loads},
+                      {"collision_errors", collision_errors},
                       {"decode_ms", decode_ms},
                       {"reconstruct_ms", reconstruct_ms},
                       {"shading_ops", shading_ops},
@@ -64,6 +69,15 @@ nlohmann::json FrameReport::to_json() const {
   if (oracle_cells) j["oracle_cells"] = *oracle_cells;
   if (oracle_ratio) j["touched_oracle_ratio"] = *oracle_ratio;
   return j;
+}
+
+void FrameReport::add_walk_counters(const Walker& walker) {
+  collision_queries = walker.queries();
+  const CollisionGrid::Counters c = walker.grid().counters();
+  collision_bricks = c.resident;
+  collision_bytes = c.resident_bytes;
+  collision_loads = c.loads;
+  collision_errors = c.errors;
 }
 
 KdBuildOptions page_refine_options(const WalkOptions& options) {

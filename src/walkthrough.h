@@ -77,6 +77,8 @@ struct WalkOptions {
 // cell_build; bench_build times the same).
 KdBuildOptions page_refine_options(const WalkOptions& options);
 
+class Walker;
+
 struct FrameReport {
   uint64_t frame = 0;
   Vec3 eye{0.0};                    // the camera's eye (walk mode: after collision)
@@ -108,6 +110,14 @@ struct FrameReport {
   uint64_t page_errors = 0;         // cumulative: pages that failed to read or decode
   uint64_t resident_cells = 0;
   uint64_t collision_queries = 0;   // filled in by the viewer's walk mode (0 without it)
+  // Walk mode's collision grid (0 without it): bricks resident now and their memory, bricks
+  // read since the start (cumulative), bricks that failed to read (cumulative; they read solid).
+  uint64_t collision_bricks = 0;
+  uint64_t collision_bytes = 0;
+  uint64_t collision_loads = 0;
+  uint64_t collision_errors = 0;
+  // Fills the collision fields from a walker (queries) and its grid (brick cache).
+  void add_walk_counters(const Walker& walker);
   double decode_ms = 0.0;
   double reconstruct_ms = 0.0;      // 0 when the frame did not reconstruct its image
   uint64_t shading_ops = 0;

@@ -1,9 +1,11 @@
 // frontier-store: looks inside a store file.
 //   info FILE    what the store holds: primitives, cells, depth, bytes per triangle, codec,
-//                lattice, cells and portals, sections, a histogram of cell sizes
+//                lattice, collision grid, cells and portals, sections, a histogram of cell sizes
 //   verify FILE  every checksum, every structural invariant (the portals section included),
-//                every page decoded and checked against its cell; exit 1 naming the first bad
-//                part
+//                every cell page decoded and checked against its cell, every collision brick
+//                decoded, every page owned by exactly one cell or brick; exit 1 naming the
+//                first bad part
+#include "src/collision_grid.h"
 #include "src/progress.h"
 #include "src/store_model.h"
 #include "store/page_file.h"
@@ -68,7 +70,19 @@ int info(const std::string& path) {
                      static_cast<double>(reader.file_size()) / tris, static_cast<double>(page_bytes) / tris);
   out += fmt::format("materials   {}, lights {}, camera {}\n", in.materials.size(), in.lights.size(),
                      in.camera ? "yes" : "no");
-  out += fmt::format("walkable    {}\n", in.walkable ? fmt::format("yes (distance grid, voxel {:.4g})", in.sdf_voxel) : "no");
+  if (in.walkable) {
+    auto grid = frontier::open_collision_grid(reader);
+    if (!grid) return fail(grid.status());
+    uint64_t brick_bytes = 0;
+    for (uint64_t p : (*grid)->brick_pages()) brick_bytes += reader.page_handle(p).size;
+    out += fmt::format("walkable    yes: distance grid, voxel {:.4g}, band {} voxels, {} active voxels in {} bricks "
+                       "of {}^3 ({:.1f} MB of pages)\n",
+                       (*grid)->voxel_size(), (*grid)->band_voxels(), (*grid)->active_voxels(),
+                       (*grid)->counters().bricks, frontier::sdf_format::kBrickVoxels,
+                       static_cast<double>(brick_bytes) / 1e6);
+  } else {
+    out += "walkable    no\n";
+  }
   if (const frontier::PortalGraph* portals = model.portals()) {
     out += fmt::format("portals     {} rooms, {} portals (walls {:.4g}, slabs {:.4g})\n", portals->room_count(),
                        portals->portal_count(), portals->wall_thickness(), portals->slab_thickness());
@@ -120,15 +134,34 @@ int verify(const std::string& path, bool quiet) {
     progress.advance(1);
   }
   progress.finish();
+  // The collision grid's bricks: each page read, checked and decoded, none shared with a cell.
+  uint64_t bricks = 0;
+  if (model.info().walkable) {
+    auto grid = frontier::open_collision_grid(model.reader());
+    if (!grid) return fail(grid.status());
+    for (uint64_t p : (*grid)->brick_pages()) {
+      if (p >= pages || page_used[p]) {
+        return fail(frontier::Status::corruption(fmt::format("{}: sdf brick page {} is missing or belongs to a cell", path, p)));
+      }
+      page_used[p] = 1;
+    }
+    if (frontier::Status s = (*grid)->check_all_bricks(); !s) return fail(s);
+    bricks = (*grid)->counters().bricks;
+  }
+  for (size_t p = 0; p < pages; ++p) {
+    if (!page_used[p]) return fail(frontier::Status::corruption(fmt::format("{}: page {} belongs to nothing", path, p)));
+  }
   if (!quiet) {
     // StoreModel::open has parsed and checked the portals section, if any.
     const std::string portals =
         model.portals() != nullptr
             ? fmt::format(", {} rooms and {} portals", model.portals()->room_count(), model.portals()->portal_count())
             : "";
-    std::printf("%s: ok: %zu pages checksummed, %llu decoded, %llu references in %zu cells, tree depth %u%s\n",
-                path.c_str(), pages, static_cast<unsigned long long>(decoded_pages),
-                static_cast<unsigned long long>(references), model.cells().size(), model.depth(), portals.c_str());
+    const std::string grid = bricks > 0 ? fmt::format(", {} collision bricks", bricks) : "";
+    std::printf("%s: ok: %zu pages checksummed, %llu decoded, %llu references in %zu cells, tree depth %u%s%s\n",
+                path.c_str(), pages, static_cast<unsigned long long>(decoded_pages + bricks),
+                static_cast<unsigned long long>(references), model.cells().size(), model.depth(), portals.c_str(),
+                grid.c_str());
   }
   return 0;
 }
@@ -141,10 +174,10 @@ int main(int argc, char** argv) {
   std::string path;
   bool quiet = false;
   auto* info_cmd = app.add_subcommand(
-      "info", "primitives, cells, depth, bytes per triangle, codec, lattice, rooms and portals, sections, cell size histogram");
+      "info", "primitives, cells, depth, bytes per triangle, codec, lattice, collision grid, rooms and portals, sections, cell size histogram");
   info_cmd->add_option("file", path, "store file")->required();
   auto* verify_cmd = app.add_subcommand(
-      "verify", "check every checksum and structural invariant and decode every page; exit 1 naming the first bad one");
+      "verify", "check every checksum and structural invariant and decode every page (cells and collision bricks); exit 1 naming the first bad one");
   verify_cmd->add_option("file", path, "store file")->required();
   verify_cmd->add_flag("-q,--quiet", quiet, "print nothing when the store is good");
   CLI11_PARSE(app, argc, argv);

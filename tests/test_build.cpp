@@ -455,6 +455,30 @@ TEST(BuildCommand, PeakMemoryStaysWithinTheBudget) {
   fs::remove(out);
 }
 
+TEST(BuildCommand, WalkableBuildKeepsTheGridOutOfMemory) {
+  // The collision grid of this model, at 5 cm, has more voxels than the budget and the allowance
+  // could hold as bare floats; the build spills it brick by brick and stays within both.
+  const std::string in = building(300000);
+  const fs::path out = scratch() / "walk_memory.frontier";
+  const auto r = run_binary(FRONTIER_BUILD_PATH, {in, "-o", out.string(), "--memory", "16M", "--threads", "2",
+                                                  "--walkable", "--sdf-voxel", "0.05"},
+                            scratch());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  auto model = StoreModel::open(out.string());
+  ASSERT_TRUE(model.is_ok()) << model.status().to_string();
+  auto grid = open_collision_grid((*model)->reader());
+  ASSERT_TRUE(grid.is_ok()) << grid.status().to_string();
+  const double grid_mib = 4.0 * static_cast<double>((*grid)->active_voxels()) / (1 << 20);
+  const double peak_mib = static_cast<double>(r.max_rss_kb) / 1024.0;
+  std::printf("peak RSS %.1f MiB with --memory 16M; the grid's %llu active voxels are %.1f MiB as floats\n%s",
+              peak_mib, static_cast<unsigned long long>((*grid)->active_voxels()), grid_mib, r.err.c_str());
+  EXPECT_GT(grid_mib, 16.0 + 128.0);
+  EXPECT_LT(peak_mib, 16.0 + 128.0);
+  const auto verify = run_binary(FRONTIER_STORE_PATH, {"verify", "--quiet", out.string()}, scratch());
+  EXPECT_EQ(verify.exit_code, 0) << verify.err;
+  fs::remove(out);
+}
+
 TEST(BuildCommand, BadInputAndOptionsFailCleanly) {
   const fs::path bad = scratch() / "bad.obj";
   {
@@ -542,9 +566,7 @@ TEST(BuildStore, WalkableAddsADistanceGrid) {
   auto model = StoreModel::open(out);
   ASSERT_TRUE(model.is_ok());
   EXPECT_TRUE((*model)->info().walkable);
-  auto bytes = (*model)->reader().read_section(kSdfSection);
-  ASSERT_TRUE(bytes.is_ok());
-  auto grid = CollisionGrid::load(*bytes);
+  auto grid = open_collision_grid((*model)->reader());
   ASSERT_TRUE(grid.is_ok()) << grid.status().to_string();
   // Points on the model's geometry are at distance ~0; the grid is not empty.
   Scene scene;
@@ -553,9 +575,32 @@ TEST(BuildStore, WalkableAddsADistanceGrid) {
   int near = 0;
   for (uint32_t i = 0; i < scene.size(); i += scene.size() / 50) {
     const Triangle& t = scene.triangles[scene.prims[i].index];
-    if (grid->distance((t.v0 + t.v1 + t.v2) / 3.0) <= 1.5 * voxel) ++near;
+    if ((*grid)->distance((t.v0 + t.v1 + t.v2) / 3.0) <= 1.5 * voxel) ++near;
   }
   EXPECT_GE(near, 48);
+  // The grid is paged: nothing resident until queried, and the bricks are pages of their own.
+  const std::vector<uint64_t> bricks = (*grid)->brick_pages();
+  EXPECT_EQ(bricks.size(), (*grid)->counters().bricks);
+  EXPECT_GE(bricks.size(), 2u);
+  EXPECT_EQ(report->sdf_bricks, bricks.size());
+  EXPECT_EQ((*model)->reader().page_count(), report->pages + bricks.size());
+  // A flipped byte in a brick page: verify names the page; the grid reads that brick as solid.
+  const store::Handle h = (*model)->reader().page_handle(bricks[1]);
+  const store::Handle* handle = &h;
+  std::vector<uint8_t> bytes = read_file(out);
+  bytes[handle->offset + handle->size / 2] ^= 0x10;
+  const std::string bad = (scratch() / "walk_bad.frontier").string();
+  write_file(bad, bytes);
+  const auto verify = run_binary(FRONTIER_STORE_PATH, {"verify", bad}, scratch());
+  EXPECT_EQ(verify.exit_code, 1);
+  EXPECT_NE(verify.err.find("offset " + std::to_string(handle->offset)), std::string::npos) << verify.err;
+  auto bad_model = StoreModel::open(bad);
+  ASSERT_TRUE(bad_model.is_ok());  // the brick is read only when a query reaches it
+  auto bad_grid = open_collision_grid((*bad_model)->reader());
+  ASSERT_TRUE(bad_grid.is_ok());
+  const Status check = (*bad_grid)->check_all_bricks();
+  EXPECT_EQ(check.code(), Status::Code::Corruption);
+  EXPECT_NE(check.message().find("page " + std::to_string(bricks[1])), std::string::npos) << check.to_string();
   // A store without --walkable has no grid.
   auto plain = StoreModel::open((scratch() / "building_draco.frontier").string());
   if (plain) {

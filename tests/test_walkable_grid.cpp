@@ -3,6 +3,7 @@
 // against damage, and the query counter.
 #include "preprocess/walkable_grid.h"
 #include "src/collision_grid.h"
+#include "store/page_format.h"
 
 #include <gtest/gtest.h>
 #include <openvdb/openvdb.h>
@@ -79,18 +80,18 @@ Scene partition_of(const Scene& all, const Aabb& region) {
   return part;
 }
 
-std::vector<uint8_t> build_one_shot(const Scene& s, double voxel = kVoxel, int band = 3) {
+SdfImage build_one_shot(const Scene& s, double voxel = kVoxel, int band = 3) {
   WalkableGridBuilder builder(voxel, band);
   Aabb everything = s.bounds();
   EXPECT_TRUE(builder.add_partition(s, everything).is_ok());
-  Result<std::vector<uint8_t>> bytes = builder.finish();
+  Result<SdfImage> bytes = builder.finish();
   EXPECT_TRUE(bytes.is_ok()) << bytes.status().to_string();
-  return bytes.is_ok() ? std::move(bytes).value() : std::vector<uint8_t>();
+  return bytes.is_ok() ? std::move(bytes).value() : SdfImage();
 }
 
 // Splits along x at `cuts` (unbounded on the outside, as k-d regions are) and adds the
 // partitions in the given order.
-std::vector<uint8_t> build_partitioned(const Scene& s, const std::vector<double>& cuts,
+SdfImage build_partitioned(const Scene& s, const std::vector<double>& cuts,
                                        bool reverse_order = false) {
   WalkableGridBuilder builder(kVoxel);
   std::vector<Aabb> regions;
@@ -110,13 +111,13 @@ std::vector<uint8_t> build_partitioned(const Scene& s, const std::vector<double>
     EXPECT_TRUE(builder.add_partition(part, r).is_ok());
   }
   EXPECT_EQ(builder.stats().partitions, regions.size());
-  Result<std::vector<uint8_t>> bytes = builder.finish();
+  Result<SdfImage> bytes = builder.finish();
   EXPECT_TRUE(bytes.is_ok()) << bytes.status().to_string();
-  return bytes.is_ok() ? std::move(bytes).value() : std::vector<uint8_t>();
+  return bytes.is_ok() ? std::move(bytes).value() : SdfImage();
 }
 
-CollisionGrid load_ok(const std::vector<uint8_t>& bytes) {
-  Result<CollisionGrid> grid = CollisionGrid::load(bytes);
+CollisionGrid load_ok(const SdfImage& bytes, uint64_t budget = CollisionGrid::kDefaultBudget) {
+  Result<CollisionGrid> grid = CollisionGrid::load(bytes, budget);
   if (!grid.is_ok()) {
     ADD_FAILURE() << grid.status().to_string();
     std::abort();
@@ -407,12 +408,15 @@ TEST(WalkableGridFormat, RoundTripKeepsEverything) {
   const Scene room = furnished_room();
   WalkableGridBuilder builder(kVoxel);
   ASSERT_TRUE(builder.add_partition(room, room.bounds()).is_ok());
-  const std::vector<uint8_t> bytes = builder.finish().value();
+  const SdfImage bytes = builder.finish().value();
   EXPECT_EQ(builder.finish().value(), bytes);  // deterministic, and finish() may repeat
   const CollisionGrid grid = load_ok(bytes);
   EXPECT_EQ(grid.active_voxels(), builder.active_voxels());
   EXPECT_GT(grid.active_voxels(), 10000u);
+  EXPECT_EQ(grid.memory_bytes(), 0u);  // bricks are read by the queries that need them
+  (void)grid.distance(Vec3(0.1, 0.1, 0.1));
   EXPECT_GT(grid.memory_bytes(), 0u);
+  EXPECT_EQ(grid.counters().loads, 1u);
   EXPECT_TRUE(grid.bounds().contains(Vec3(0.0)));
   EXPECT_TRUE(grid.bounds().contains(Vec3(4.0, 3.0, 2.5)));
   // Active voxel centres reach the last lattice point closer than the band (3 voxels) to the wall.
@@ -421,12 +425,16 @@ TEST(WalkableGridFormat, RoundTripKeepsEverything) {
   for (const Vec3& p : probe_points()) ASSERT_EQ(grid.distance(p), again.distance(p));
 }
 
-TEST(WalkableGridFormat, DamagedBytesAreCorruptionNotACrash) {
+TEST(WalkableGridFormat, DamagedSectionsAreCorruptionNotACrash) {
   Scene s;
   add_room(s, kRoom);
-  const std::vector<uint8_t> good = build_one_shot(s);
-  ASSERT_TRUE(CollisionGrid::load(good).is_ok());
-  // Every truncation point in the header, then a spread of them through the payload.
+  const SdfImage image = build_one_shot(s);
+  ASSERT_TRUE(CollisionGrid::load(image).is_ok());
+  const std::vector<uint8_t>& good = image.section;
+  const auto load_section = [&](std::vector<uint8_t> section) {
+    return CollisionGrid::load(SdfImage{std::move(section), image.pages});
+  };
+  // Every truncation point in the header, then a spread of them through the brick table.
   std::vector<size_t> cuts;
   for (size_t n = 0; n <= sdf_format::kHeaderSize + 4; ++n) cuts.push_back(n);
   for (size_t n = sdf_format::kHeaderSize; n < good.size(); n += std::max<size_t>(1, good.size() / 97)) {
@@ -434,36 +442,128 @@ TEST(WalkableGridFormat, DamagedBytesAreCorruptionNotACrash) {
   }
   cuts.push_back(good.size() - 1);
   for (size_t n : cuts) {
-    const std::vector<uint8_t> cut(good.begin(), good.begin() + n);
-    const Result<CollisionGrid> r = CollisionGrid::load(cut);
+    const Result<CollisionGrid> r = load_section(std::vector<uint8_t>(good.begin(), good.begin() + n));
     ASSERT_FALSE(r.is_ok()) << n;
     EXPECT_EQ(r.status().code(), Status::Code::Corruption) << n;
   }
-  // Flipped bytes anywhere: header fields or payload.
-  for (size_t at = 0; at < good.size(); at += std::max<size_t>(1, good.size() / 211)) {
+  // Flipped bytes anywhere: header fields or the table.
+  for (size_t at = 0; at < good.size(); ++at) {
     std::vector<uint8_t> bad = good;
     bad[at] ^= 0x5a;
-    const Result<CollisionGrid> r = CollisionGrid::load(bad);
+    const Result<CollisionGrid> r = load_section(bad);
     ASSERT_FALSE(r.is_ok()) << at;
     EXPECT_NE(r.status().message().find("sdf"), std::string::npos);
   }
   // A newer version is refused as Unsupported, cleanly.
   std::vector<uint8_t> newer = good;
   newer[4] = uint8_t(sdf_format::kVersion + 1);
-  EXPECT_EQ(CollisionGrid::load(newer).status().code(), Status::Code::Unsupported);
+  EXPECT_EQ(load_section(newer).status().code(), Status::Code::Unsupported);
+}
+
+// Query points in every brick of the grid (index space back to world: (i + origin) * h) and
+// between them, so that every brick gets read.
+std::vector<Vec3> probes_over(const CollisionGrid& grid, int per_axis) {
+  const Aabb b = grid.bounds();
+  std::vector<Vec3> pts;
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> jitter(-0.5, 0.5);
+  for (int i = 0; i < per_axis; ++i) {
+    for (int j = 0; j < per_axis; ++j) {
+      for (int k = 0; k < per_axis; ++k) {
+        const Vec3 t((i + 0.5 + jitter(rng) * 0.5) / per_axis, (j + 0.5 + jitter(rng) * 0.5) / per_axis,
+                     (k + 0.5 + jitter(rng) * 0.5) / per_axis);
+        pts.push_back(b.lo + t * b.extent());
+      }
+    }
+  }
+  return pts;
+}
+
+TEST(WalkableGridFormat, DamagedBrickReadsSolidAndIsReported) {
+  Scene s;
+  add_room(s, Aabb(Vec3(0.0), Vec3(8.0, 7.0, 2.5)));  // 160 x 140 voxels across: several bricks
+  SdfImage image = build_one_shot(s);
+  ASSERT_GE(image.pages.size(), 6u);
+  {
+    const CollisionGrid good = load_ok(image);
+    EXPECT_TRUE(good.check_all_bricks().is_ok());
+  }
+  // Flip a byte in the middle of brick page 2: its checksum fails.
+  image.pages[2][image.pages[2].size() / 2] ^= 0x21;
+  const CollisionGrid grid = load_ok(image);
+  const Status whole = grid.check_all_bricks();
+  ASSERT_FALSE(whole.is_ok());
+  EXPECT_EQ(whole.code(), Status::Code::Corruption);
+  EXPECT_NE(whole.message().find("page 2"), std::string::npos) << whole.to_string();
+  // Queries go on; the damaged brick's voxels read 0 (solid), all others as before.
+  int solid = 0;
+  for (const Vec3& p : probes_over(grid, 24)) solid += grid.distance(p) == 0.0;
+  EXPECT_GT(solid, 0);
+  EXPECT_EQ(grid.counters().errors, 1u);
+  EXPECT_FALSE(grid.error().is_ok());
+  EXPECT_NE(grid.error().message().find("page 2"), std::string::npos);
+  // A brick page with a good checksum but not an OpenVDB stream: the same, never a crash.
+  SdfImage forged = build_one_shot(s);
+  std::vector<uint8_t> noise(3000);
+  std::mt19937_64 rng(5);
+  for (uint8_t& b : noise) b = uint8_t(rng());
+  forged.pages[1] = store::encode_page(sdf_format::kBrickCodec, noise);
+  const CollisionGrid other = load_ok(forged);
+  EXPECT_EQ(other.check_all_bricks().code(), Status::Code::Corruption);
+  // A page of another kind (a cell page's codec) is refused before OpenVDB reads it.
+  forged.pages[1] = store::encode_page(0, noise);
+  EXPECT_NE(load_ok(forged).check_all_bricks().message().find("not a collision brick"), std::string::npos);
+}
+
+TEST(WalkableGridPaging, SmallBudgetGivesTheSameAnswersWithinTheBudget) {
+  // A floor of 12 x 12 m under a 3 m room grid: at 5 cm, 240 x 240 voxels, 4 x 4 bricks and more.
+  Scene s;
+  add_room(s, Aabb(Vec3(0.0), Vec3(12.0, 12.0, 3.0)));
+  for (double x = 2.0; x < 12.0; x += 2.5) add_quad(s, {x, 0, 0}, {x, 12, 0}, {x, 12, 3}, {x, 0, 3});
+  const SdfImage image = build_one_shot(s);
+  const CollisionGrid all = load_ok(image, ~uint64_t{0});
+  const std::vector<Vec3> probes = probes_over(all, 30);
+  std::vector<double> expected;
+  for (const Vec3& p : probes) expected.push_back(all.distance(p));
+  const CollisionGrid::Counters full = all.counters();
+  EXPECT_EQ(full.loads, full.bricks);  // every brick read once, none evicted
+  EXPECT_EQ(full.evictions, 0u);
+  ASSERT_GE(full.bricks, 16u);
+
+  // Room for about three bricks.
+  const uint64_t budget = 3 * full.largest_brick_bytes;
+  const CollisionGrid small = load_ok(image, budget);
+  uint64_t most = 0;
+  for (size_t i = 0; i < probes.size(); ++i) {
+    ASSERT_EQ(small.distance(probes[i]), expected[i]) << i;
+    most = std::max(most, small.counters().resident_bytes);
+  }
+  const CollisionGrid::Counters c = small.counters();
+  EXPECT_LE(most, budget);
+  EXPECT_LE(c.resident, 3u);
+  EXPECT_GT(c.evictions, 0u);
+  EXPECT_GT(c.loads, c.bricks);  // bricks were read again after eviction
+  EXPECT_EQ(c.errors, 0u);
+  EXPECT_EQ(small.active_voxels(), all.active_voxels());
+  // Walking across the whole model through a tiny cache stops where the big cache stops.
+  const Vec3 from(1.0, 6.0, 1.5), to(11.5, 6.0, 1.5);
+  EXPECT_EQ(small.resolve(from, to, 0.1), all.resolve(from, to, 0.1));
 }
 
 TEST(WalkableGridFormat, GarbageBehindAValidChecksumIsCorruption) {
   // The checksum guards OpenVDB's reader; these reach it and must still come back as a Status.
-  Scene s;
-  add_room(s, kRoom);
-  const std::vector<uint8_t> good = build_one_shot(s);
-  const std::span<const uint8_t> payload(good.data() + sdf_format::kHeaderSize,
-                                         good.size() - sdf_format::kHeaderSize);
+  // Version 1 sections (the whole grid in the section, still read) carry an OpenVDB stream.
   std::vector<std::vector<uint8_t>> payloads;
   payloads.push_back({});
-  payloads.emplace_back(payload.begin(), payload.begin() + payload.size() / 2);
-  payloads.emplace_back(payload.begin(), payload.begin() + 16);
+  {
+    Scene s;
+    add_room(s, kRoom);
+    const SdfImage image = build_one_shot(s);
+    auto brick = store::decode_page(image.pages[0], store::Handle{0, image.pages[0].size()});
+    ASSERT_TRUE(brick.is_ok());
+    payloads.emplace_back(brick->payload.begin(), brick->payload.begin() + brick->payload.size() / 2);
+    payloads.emplace_back(brick->payload.begin(), brick->payload.begin() + 16);
+  }
   std::mt19937_64 rng(11);
   std::vector<uint8_t> noise(4096);
   for (uint8_t& b : noise) b = uint8_t(rng());
@@ -484,10 +584,48 @@ TEST(WalkableGridFormat, GarbageBehindAValidChecksumIsCorruption) {
     // inside it (the truncated payload); not ours, and unreachable without a forged checksum.
     __lsan::ScopedDisabler openvdb_leaks_on_truncated_streams;
 #endif
-    const Result<CollisionGrid> r = CollisionGrid::load(sdf_format::frame(payloads[i]));
+    const Result<CollisionGrid> r =
+        CollisionGrid::load(SdfImage{sdf_format::frame(payloads[i], sdf_format::kVersion1), {}});
     ASSERT_FALSE(r.is_ok()) << i;
     EXPECT_EQ(r.status().code(), Status::Code::Corruption) << i << " " << r.status().to_string();
   }
+  // The same payloads as brick pages (version 2): the brick read fails, the grid carries on.
+  Scene room;
+  add_room(room, kRoom);
+  SdfImage image = build_one_shot(room);
+  for (size_t i = 0; i < payloads.size(); ++i) {
+#if defined(FRONTIER_TEST_ASAN)
+    __lsan::ScopedDisabler openvdb_leaks_on_truncated_streams;
+#endif
+    image.pages[0] = store::encode_page(sdf_format::kBrickCodec, payloads[i]);
+    const CollisionGrid grid = load_ok(image);
+    const Status st = grid.check_all_bricks();
+    EXPECT_EQ(st.code(), Status::Code::Corruption) << i << " " << st.to_string();
+  }
+}
+
+TEST(WalkableGridFormat, VersionOneSectionsStillLoad) {
+  // A version 1 section: the whole grid as one OpenVDB stream with the metadata in the section.
+  ensure_openvdb_initialized();
+  const double h = 0.1;
+  openvdb::FloatGrid::Ptr g = openvdb::FloatGrid::create(float(3 * h));
+  g->setTransform(openvdb::math::Transform::createLinearTransform(h));
+  for (int i = 0; i < 4; ++i) g->tree().setValueOn(openvdb::Coord(i, 0, 0), float(0.05 * i));
+  g->setName(sdf_format::kGridName);
+  g->insertMeta(sdf_format::kMetaVoxelSize, openvdb::DoubleMetadata(h));
+  g->insertMeta(sdf_format::kMetaBandVoxels, openvdb::Int32Metadata(3));
+  g->insertMeta(sdf_format::kMetaDistance, openvdb::StringMetadata("unsigned"));
+  std::ostringstream out(std::ios::binary);
+  openvdb::io::Stream(out).write(openvdb::GridCPtrVec{g});
+  const std::string str = out.str();
+  const std::vector<uint8_t> payload(str.begin(), str.end());
+  const CollisionGrid grid = load_ok(SdfImage{sdf_format::frame(payload, sdf_format::kVersion1), {}});
+  EXPECT_EQ(grid.active_voxels(), 4u);
+  EXPECT_EQ(grid.counters().bricks, 1u);
+  EXPECT_NEAR(grid.distance(Vec3(0.2, 0.0, 0.0)), 0.1, 1e-6);
+  EXPECT_NEAR(grid.distance(Vec3(0.15, 0.0, 0.0)), 0.075, 1e-6);
+  EXPECT_EQ(grid.distance(Vec3(5.0, 5.0, 5.0)), grid.band_width());
+  EXPECT_TRUE(grid.check_all_bricks().is_ok());
 }
 
 TEST(WalkableGridQueries, ConcurrentQueriesAgreeAndAreAllCounted) {

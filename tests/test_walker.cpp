@@ -45,7 +45,7 @@ CollisionGrid build_grid(const Scene& s) {
   WalkableGridBuilder builder(kVoxel, WalkableGridBuilder::band_voxels_for_radius(kParams.radius, kVoxel));
   const Status added = builder.add_partition(s, s.bounds());
   EXPECT_TRUE(added.is_ok()) << added.to_string();
-  Result<std::vector<uint8_t>> bytes = builder.finish();
+  Result<SdfImage> bytes = builder.finish();
   if (!bytes.is_ok()) {
     ADD_FAILURE() << bytes.status().to_string();
     std::abort();

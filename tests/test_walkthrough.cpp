@@ -328,6 +328,7 @@ TEST(Walkthrough, StillCameraRefinesThenAddsDeferredShadows) {
 // A walkable store of `model`, and its distance grid.
 struct WalkableStore {
   std::string path;
+  std::unique_ptr<StoreModel> model;  // the grid reads its bricks through the model's reader
   std::unique_ptr<CollisionGrid> grid;
   double radius = 0.0;
 };
@@ -346,12 +347,11 @@ WalkableStore walkable_store(const std::string& model, const std::string& name) 
   auto m = StoreModel::open(w.path);
   EXPECT_TRUE(m.is_ok());
   if (!m.is_ok()) return w;
-  auto bytes = (*m)->reader().read_section(kSdfSection);
-  EXPECT_TRUE(bytes.is_ok());
-  auto grid = CollisionGrid::load(*bytes);
+  auto grid = open_collision_grid((*m)->reader());
   EXPECT_TRUE(grid.is_ok());
-  if (grid.is_ok()) w.grid = std::make_unique<CollisionGrid>(std::move(*grid));
+  if (grid.is_ok()) w.grid = std::move(*grid);
   w.radius = (*m)->info().walk_radius;
+  w.model = std::move(*m);
   return w;
 }
 

@@ -109,7 +109,7 @@ double percentile(std::vector<double> v, double p) {
 
 struct Options {
   std::string scene_path, size_text, method_text = "frustum", png_path, ids_path, stats_path;
-  std::string cache_text = "512M", path_file, report_path, png_dir, visibility_text = "frustum-advance";
+  std::string cache_text = "512M", collision_cache_text = "64M", path_file, report_path, png_dir, visibility_text = "frustum-advance";
   bool cull_back_faces = false, back_sample_culling = false;
   std::string order_text = "input", aa_text, bsp_stats_path;
   int bsp_candidates = BspBuildOptions{}.candidates;
@@ -121,6 +121,7 @@ struct Options {
   double frame_ms = 0.0, eye_height = 0.0, radius = 0.0;
   double min_sampled = WalkOptions{}.min_sampled;
   uint64_t samples = 0;
+  uint64_t collision_cache = CollisionGrid::kDefaultBudget;
   int width = 0, height = 0;
 };
 
@@ -381,16 +382,12 @@ int render_in_memory(const Options& o, bool store) {
 }
 
 // Walk mode: the store must carry a distance grid (frontier-build --walkable).
-Result<std::unique_ptr<CollisionGrid>> load_grid(const StoreModel& model) {
+Result<std::unique_ptr<CollisionGrid>> load_grid(const StoreModel& model, uint64_t budget) {
   if (!model.info().walkable) {
     return Status::invalid_argument(model.reader().name() +
                                     ": the store declares no walk mode (build it with --walkable)");
   }
-  auto bytes = model.reader().read_section(kSdfSection);
-  if (!bytes) return bytes.status();
-  auto grid = CollisionGrid::load(*bytes);
-  if (!grid) return Status::corruption(model.reader().name() + ": sdf section: " + grid.status().message());
-  return std::make_unique<CollisionGrid>(std::move(*grid));
+  return open_collision_grid(model.reader(), budget);
 }
 
 WalkParams walk_params(const Options& o, const StoreModel& model) {
@@ -411,7 +408,7 @@ struct WalkMode {
   std::unique_ptr<Walker> walker;
 };
 int open_walk_mode(const Options& o, const StoreModel& model, WalkMode& mode) {
-  auto grid = load_grid(model);
+  auto grid = load_grid(model, o.collision_cache);
   if (!grid) return fail(grid.status());
   mode.grid = std::move(*grid);
   const WalkParams params = walk_params(o, model);
@@ -450,6 +447,7 @@ int walk_headless(const Options& o, Walkthrough& walk, const Camera& start) {
   const size_t png_every = o.png_every > 0 ? size_t(o.png_every) : std::max<size_t>(1, frames / 4);
   std::vector<double> frame_ms;
   double samples = 0.0, ratio_sum = 0.0, ratio_max = 0.0;
+  uint64_t collision_max = 0;
   uint64_t bytes_read = 0, ratio_frames = 0, errors = 0, resident_max = 0, complete = 0, floor_frames = 0;
   Vec3 eye = path.front().eye;
   for (size_t f = 0; f < frames; ++f) {
@@ -462,12 +460,13 @@ int walk_headless(const Options& o, Walkthrough& walk, const Camera& start) {
       cam.look_at = eye + look;
     }
     FrameReport r = walk.frame(cam);
-    if (walker) r.collision_queries = walker->queries();
+    if (walker) r.add_walk_counters(*walker);
     frame_ms.push_back(r.frame_ms);
     samples += double(r.samples);
     bytes_read += r.bytes_read;
     errors = r.page_errors;
     resident_max = std::max(resident_max, r.resident_bytes);
+    collision_max = std::max(collision_max, r.collision_bytes);
     complete += r.complete ? 1 : 0;
     floor_frames += r.floor_ms > 0.0 ? 1 : 0;
     if (r.oracle_ratio) {
@@ -492,7 +491,11 @@ int walk_headless(const Options& o, Walkthrough& walk, const Camera& start) {
                             {"cache_budget", walk.world().budget_bytes()},
                             {"total_bytes_read", bytes_read},
                             {"page_errors", errors},
-                            {"collision_queries", walker ? walker->queries() : 0}};
+                            {"collision_queries", walker ? walker->queries() : 0},
+                            {"max_collision_bytes", collision_max},
+                            {"collision_cache_budget", walker ? o.collision_cache : 0},
+                            {"collision_loads", walker ? walker->grid().counters().loads : 0},
+                            {"collision_errors", walker ? walker->grid().counters().errors : 0}};
   if (ratio_frames > 0) {
     summary["mean_touched_oracle_ratio"] = ratio_sum / double(ratio_frames);
     summary["max_touched_oracle_ratio"] = ratio_max;
@@ -511,6 +514,14 @@ int walk_headless(const Options& o, Walkthrough& walk, const Camera& start) {
              ratio_frames ? fmt::format("; touched/oracle mean {:.3f} max {:.3f}", ratio_sum / double(ratio_frames),
                                         ratio_max)
                           : std::string());
+  if (walker) {
+    const CollisionGrid::Counters c = walker->grid().counters();
+    fmt::print(stderr, "frontier-view: collision grid: {} of {} bricks read ({:.1f} ms), at most {:.1f} of {:.1f} MiB "
+                       "resident, {} evicted, {} unreadable\n",
+               c.loads, c.bricks, c.load_ms, double(collision_max) / 1048576.0, double(o.collision_cache) / 1048576.0,
+               c.evictions, c.errors);
+    if (c.errors > 0) fmt::print(stderr, "frontier-view: {}\n", walker->grid().error().to_string());
+  }
   return 0;
 }
 
@@ -556,6 +567,9 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.0, 1.0));
   // Stores.
   app.add_option("--cache", o.cache_text, "store: memory budget for paged cells, compressed and decoded (e.g. 512M, 2G)");
+  app.add_option("--collision-cache", o.collision_cache_text,
+                 "walk mode: memory budget for the collision grid's bricks, paged in as the walker reaches them "
+                 "(default 64M)");
   app.add_option("--path", o.path_file, "store, headless: camera path (.cam, from frontier-gen path)");
   app.add_option("--frames", o.frames, "frames to render (default: the path's length; window: until closed)")
       ->check(CLI::NonNegativeNumber);
@@ -626,6 +640,11 @@ int main(int argc, char** argv) {
   }
   const auto cache = parse_byte_size(o.cache_text);
   if (!cache || *cache < (1u << 20)) return bad_option("--cache " + o.cache_text + ": expected a size of at least 1M, e.g. 512M");
+  const auto collision_cache = parse_byte_size(o.collision_cache_text);
+  if (!collision_cache || *collision_cache < (1u << 20)) {
+    return bad_option("--collision-cache " + o.collision_cache_text + ": expected a size of at least 1M, e.g. 64M");
+  }
+  o.collision_cache = *collision_cache;
 
   WalkOptions wo;
   wo.cache_bytes = *cache;

@@ -836,7 +836,7 @@ int WindowSession::run() {
     const Camera camera = next_camera(shown, script_keys, dt);
 
     last_ = walk_.frame(camera);
-    if (walker_ != nullptr) last_.collision_queries = walker_->queries();
+    if (walker_ != nullptr) last_.add_walk_counters(*walker_);
     touched_ = walk_.touched_cells();
     history_.push(last_);
     if (peg_samples_ == 0) peg_samples_ = std::max<uint64_t>(1000, walk_.view().pixels() / 4);
