@@ -18,6 +18,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <climits>
 #include <cmath>
 #include <condition_variable>
 #include <deque>
@@ -28,6 +29,7 @@
 #include <random>
 #include <thread>
 
+#include <malloc.h>
 #include <stdlib.h>
 
 namespace frontier {
@@ -776,6 +778,12 @@ class StoreBuilder {
 };
 
 }  // namespace
+
+void tune_allocator_for_build() {
+  mallopt(M_TRIM_THRESHOLD, INT_MAX);
+  mallopt(M_MMAP_THRESHOLD, 32 << 20);
+  mallopt(M_TOP_PAD, 256 << 20);
+}
 
 Result<BuildReport> build_store(const BuildOptions& options) {
   StoreBuilder builder(options);

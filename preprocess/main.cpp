@@ -28,6 +28,7 @@ bool sidecar_says_walkable(const std::string& input) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  frontier::tune_allocator_for_build();
   CLI::App app{
       "frontier-build: stream PLY/OBJ/OFF/NFF models into one paged, compressed, checksummed k-d tree store.\n"
       "Memory stays within --memory (plus buffers): parts of the model that do not fit are split on disk\n"

@@ -561,7 +561,12 @@ TEST(WalkableGridFormat, GarbageBehindAValidChecksumIsCorruption) {
     const SdfImage image = build_one_shot(s);
     auto brick = store::decode_page(image.pages[0], store::Handle{0, image.pages[0].size()});
     ASSERT_TRUE(brick.is_ok());
+#if !defined(FRONTIER_TEST_ASAN)
+    // Cut inside the zipped values, OpenVDB 10's unzipFromStream sizes its buffer from bytes
+    // the stream never delivered (here about 100 TB): new[] throws std::bad_alloc, which
+    // load() catches as Corruption; ASan aborts on such a request by policy instead.
     payloads.emplace_back(brick->payload.begin(), brick->payload.begin() + brick->payload.size() / 2);
+#endif
     payloads.emplace_back(brick->payload.begin(), brick->payload.begin() + 16);
   }
   std::mt19937_64 rng(11);

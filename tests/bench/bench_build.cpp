@@ -106,6 +106,7 @@ Decode decode_all(const std::string& store) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  frontier::tune_allocator_for_build();  // as frontier-build does
   CLI::App app{"bench_build: frontier-build throughput against the I/O floor, bytes/triangle, page decode speed"};
   std::vector<std::string> models;
   std::vector<int> bits = {16};
