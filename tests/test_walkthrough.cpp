@@ -414,6 +414,49 @@ TEST(ViewCommand, WalkModeStopsTheEyeAtItsRadiusFromAWall) {
   EXPECT_GE(w.grid->distance(walked), w.radius - 1e-6);
 }
 
+// The collision grid is paged: a walk reads a few bricks, keeps them within --collision-cache,
+// and walks the same path whatever the budget (a brick evicted is read again, identically).
+TEST(ViewCommand, WalkModePagesTheCollisionGridWithinItsBudget) {
+  const BuildingWalk& b = building_walk();
+  const WalkableStore w = walkable_store(b.model, "building_walkable");
+  ASSERT_TRUE(w.grid);
+  const auto walk = [&](const std::string& budget) {
+    const std::string report = (scratch() / ("walk_budget_" + budget + ".jsonl")).string();
+    const auto r = run_binary(FRONTIER_VIEW_PATH,
+                              {w.path, "--headless", "--walk", "--path", b.path, "--frames", "60", "--size", "32x24",
+                               "--collision-cache", budget, "--report", report},
+                              scratch());
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    std::vector<nlohmann::json> lines;
+    std::ifstream in(report);
+    for (std::string line; std::getline(in, line);) lines.push_back(nlohmann::json::parse(line));
+    return lines;
+  };
+  const std::vector<nlohmann::json> big = walk("256M"), small = walk("1M");
+  ASSERT_EQ(big.size(), 61u);
+  ASSERT_EQ(small.size(), big.size());
+  for (size_t f = 0; f + 1 < big.size(); ++f) {
+    ASSERT_EQ(small[f]["eye"], big[f]["eye"]) << "frame " << f;
+    EXPECT_GT(big[f]["collision_bricks"].get<uint64_t>(), 0u);
+    EXPECT_EQ(big[f]["collision_errors"].get<uint64_t>(), 0u);
+  }
+  const nlohmann::json& bs = big.back()["summary"];
+  const nlohmann::json& ss = small.back()["summary"];
+  EXPECT_EQ(ss["collision_cache_budget"].get<uint64_t>(), uint64_t{1} << 20);
+  EXPECT_GT(bs["max_collision_bytes"].get<uint64_t>(), 0u);
+  EXPECT_LE(ss["max_collision_bytes"].get<uint64_t>(), bs["max_collision_bytes"].get<uint64_t>());
+  EXPECT_GE(ss["collision_loads"].get<uint64_t>(), bs["collision_loads"].get<uint64_t>());
+  // A walk reads a small part of the grid: what it held is less than the grid as bare floats.
+  EXPECT_LT(bs["max_collision_bytes"].get<uint64_t>(), 4 * w.grid->active_voxels());
+  std::printf("collision grid: %llu active voxels; walk held at most %llu bytes (budget 256M), %llu (budget 1M) "
+              "with %llu and %llu brick loads\n",
+              static_cast<unsigned long long>(w.grid->active_voxels()),
+              static_cast<unsigned long long>(bs["max_collision_bytes"].get<uint64_t>()),
+              static_cast<unsigned long long>(ss["max_collision_bytes"].get<uint64_t>()),
+              static_cast<unsigned long long>(bs["collision_loads"].get<uint64_t>()),
+              static_cast<unsigned long long>(ss["collision_loads"].get<uint64_t>()));
+}
+
 // The same on the generated building, straight along +x and -x from the walk's first eye:
 // the eye never gets past the first wall a horizontal ray from it meets (it may stop earlier,
 // at furniture too high to step over).
