@@ -107,6 +107,10 @@ void put_leaf(std::vector<uint8_t>& out, const openvdb::FloatTree::LeafNodeType&
 
 }  // namespace
 
+double point_triangle_distance(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  return triangle_distance(p, a, b, c);
+}
+
 struct WalkableGridBuilder::Impl {
   double voxel;
   int band;

@@ -67,6 +67,10 @@
 
 namespace frontier {
 
+// The exact distance from p to triangle abc (robust to degenerate triangles), as the builder
+// writes it at every voxel centre; bench_accuracy's reference.
+double point_triangle_distance(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c);
+
 class WalkableGridBuilder {
  public:
   static constexpr int kDefaultBandVoxels = 3;

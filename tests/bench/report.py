@@ -299,6 +299,8 @@ ACCURACY_PLOTS = [
          ylabel="page-in ms per frame", name="refine"),
     dict(knob="cache_bytes", x="value", y="page_in_ms", xlabel="cache budget (bytes)", ylabel="page-in ms per frame",
          name="cache", logx=True),
+    dict(knob="sdf_voxel", x="grid_build_s", y="max_error", xlabel="collision grid build s",
+         ylabel="max distance error (model units)", name="sdf", logy=True),
 ]
 
 

@@ -134,7 +134,7 @@ run "$build/tests/bench/bench_build" "$building" "$terrain" --codecs draco raw -
 
 echo "== 3. what accuracy costs in time"
 run "$build/tests/bench/bench_accuracy" --model "$small_building" --path "$small_path" --dir "$work/accuracy" \
-  --reuse --json "$raw/accuracy.jsonl" | tee "$raw/accuracy.md"
+  --reuse --knobs quant,samples,cells,refine,cache,sdf --json "$raw/accuracy.jsonl" | tee "$raw/accuracy.md"
 
 echo "== 4. numerical stability: the hard-case suite"
 filter="EngineHardCases.*:EngineRandom.*:EngineSpd.*:TriangleWatertight.*:TriangleIntersect.*:SphereIntersect.*"
