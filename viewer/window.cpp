@@ -567,6 +567,15 @@ void WindowSession::draw_text_panel(float scale) {
   lines.emplace_back(fmt::format("resident {:.1f} of {:.0f} MiB ({} cells)  read {:.2f} MiB", double(r.resident_bytes) / kMiB,
                                  double(r.cache_budget) / kMiB, grouped(r.resident_cells), double(r.bytes_read) / kMiB),
                      kWhite);
+  if (walker_ != nullptr) {
+    // Walk mode's collision grid, paged on its own budget (--collision-cache).
+    const CollisionGrid::Counters c = walker_->grid().counters();
+    lines.emplace_back(fmt::format("collision {:.1f} of {:.0f} MiB ({} of {} bricks, {} read){}",
+                                   double(c.resident_bytes) / kMiB, double(c.budget_bytes) / kMiB, grouped(c.resident),
+                                   grouped(c.bricks), grouped(c.loads),
+                                   c.errors ? fmt::format("  BRICK ERRORS {}", c.errors) : ""),
+                       c.errors ? kRed : kWhite);
+  }
   const View& view = walk_.view();
   double yaw = 0.0, pitch = 0.0;
   rig_.heading(view.forward, yaw, pitch);  // of the image shown (a replayed path moves it, not the rig)
