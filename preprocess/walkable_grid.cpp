@@ -6,6 +6,7 @@
 // triangle costs a column of at most 2 sqrt(3) band + 1 voxels per band voxel it owns.
 #include "preprocess/walkable_grid.h"
 
+#include "src/byte_io.h"
 #include "src/collision_grid.h"
 #include "src/tessellate.h"
 #include "store/page_format.h"
@@ -129,7 +130,6 @@ struct WalkableGridBuilder::Impl {
   uint64_t spill_size = 0;
   std::map<BrickKey, std::vector<Chunk>> index;
   Status spill_error;
-  uint64_t chunks = 0;
   uint64_t finished_active = 0;  // active voxels of the last finish()
   uint64_t peak_brick_bytes = 0;
 
@@ -255,7 +255,6 @@ struct WalkableGridBuilder::Impl {
       }
       index[key].push_back(Chunk{spill_size, bytes.size()});
       spill_size += bytes.size();
-      ++chunks;
     }
   }
 
@@ -524,9 +523,7 @@ struct WalkableGridBuilder::Impl {
             }));
     if (!failed.is_ok()) return failed;
     std::vector<uint8_t> payload;
-    const double h = voxel;
-    const auto* hb = reinterpret_cast<const uint8_t*>(&h);
-    payload.insert(payload.end(), hb, hb + sizeof h);
+    put_f64(payload, voxel);
     store::put_u32(payload, uint32_t(band));
     store::put_u32(payload, uint32_t(sdf_format::kBrickVoxels));
     for (int a = 0; a < 3; ++a) store::put_u64(payload, uint64_t(int64_t(origin_index[a])));
@@ -613,7 +610,9 @@ uint64_t WalkableGridBuilder::memory_bytes() const {
   // The spill index (a map node per brick, a chunk record per piece) and the largest brick.
   // finish() holds up to two bricks per hardware thread at once.
   const uint64_t in_flight = 2 * uint64_t(std::max(1u, std::thread::hardware_concurrency()));
-  return impl_->index.size() * 96 + impl_->chunks * sizeof(Chunk) + in_flight * impl_->peak_brick_bytes;
+  uint64_t chunks = 0;
+  for (const auto& [key, pieces] : impl_->index) chunks += pieces.size();
+  return impl_->index.size() * 96 + chunks * sizeof(Chunk) + in_flight * impl_->peak_brick_bytes;
 }
 uint64_t WalkableGridBuilder::spill_bytes() const { return impl_->spill_size; }
 

@@ -5,6 +5,8 @@
 // cost a tree lookup each and the cache's mutex only once per brick per query.
 #include "src/collision_grid.h"
 
+#include "src/byte_io.h"
+
 #include "store/page_format.h"
 #include "store/store_file.h"
 
@@ -138,10 +140,7 @@ struct CollisionGrid::Impl {
     const std::string where = fmt::format("sdf brick ({}, {}, {}) in page {}: ", b.coord.x(), b.coord.y(),
                                           b.coord.z(), b.page);
     auto bytes = source(b.page);
-    if (!bytes) {
-      return bytes.status().code() == Status::Code::IoError ? Status::io_error(where + bytes.status().message())
-                                                             : Status::corruption(where + bytes.status().message());
-    }
+    if (!bytes) return bytes.status().prefixed(where);
     auto grid = read_grid(*bytes);
     if (!grid) return Status::corruption(where + grid.status().message());
     try {
@@ -395,8 +394,7 @@ Result<CollisionGrid> CollisionGrid::open(std::span<const uint8_t> bytes, BrickS
     constexpr size_t kFixed = 8 + 4 + 4 + 24 + 8 + 8;
     if (payload.size() < kFixed) return corrupt("truncated brick table");
     const uint8_t* p = payload.data();
-    double voxel;
-    std::memcpy(&voxel, p, 8);
+    const double voxel = get_f64(p);
     const int band = int(int32_t(store::get_u32(p + 8)));
     if (!check_sizes(voxel, band)) return corrupt("bad voxel size or band width");
     if (store::get_u32(p + 12) != uint32_t(sdf_format::kBrickVoxels)) return corrupt("unknown brick size");
@@ -436,8 +434,6 @@ Result<CollisionGrid> CollisionGrid::open(std::span<const uint8_t> bytes, BrickS
       impl->bricks.push_back(b);
     }
     if (active != impl->total_active) return corrupt("brick voxel counts do not add up");
-    impl->stats.bricks = count;
-    impl->stats.budget_bytes = budget_bytes;
     return CollisionGrid(std::move(impl));
   }
 
@@ -464,10 +460,7 @@ Result<CollisionGrid> CollisionGrid::open(std::span<const uint8_t> bytes, BrickS
   } catch (const std::exception& e) {
     return corrupt(std::string("OpenVDB: ") + e.what());
   }
-  impl->stats.bricks = 1;
-  impl->stats.resident = 1;
   impl->stats.resident_bytes = impl->whole->memUsage();
-  impl->stats.budget_bytes = budget_bytes;
   return CollisionGrid(std::move(impl));
 }
 
@@ -537,7 +530,9 @@ std::vector<uint64_t> CollisionGrid::brick_pages() const {
 CollisionGrid::Counters CollisionGrid::counters() const {
   const std::lock_guard<std::mutex> lock(impl_->mu);
   Counters c = impl_->stats;
-  if (!impl_->whole) c.resident = impl_->cache.size();
+  c.bricks = impl_->whole ? 1 : impl_->bricks.size();
+  c.resident = impl_->whole ? 1 : impl_->cache.size();
+  c.budget_bytes = impl_->budget;
   return c;
 }
 
@@ -583,10 +578,7 @@ Result<std::unique_ptr<CollisionGrid>> open_collision_grid(const store::StoreRea
     return std::move(block->payload);
   };
   auto grid = CollisionGrid::open(*section, std::move(source), budget_bytes);
-  if (!grid) {
-    const std::string msg = reader.name() + ": " + grid.status().message();
-    return grid.status().code() == Status::Code::Unsupported ? Status::unsupported(msg) : Status::corruption(msg);
-  }
+  if (!grid) return grid.status().prefixed(reader.name() + ": ");
   return std::make_unique<CollisionGrid>(std::move(*grid));
 }
 

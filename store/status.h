@@ -7,6 +7,7 @@
 #pragma once
 
 #include <string>
+#include <string_view>
 #include <utility>
 #include <variant>
 
@@ -30,6 +31,10 @@ class Status {
   const std::string& message() const { return message_; }
   // "Corruption: file.ply: line 12: ..." style text for the terminal.
   std::string to_string() const;
+  // The same code with `prefix` (say "file: ") before the message: context added on the way up.
+  Status prefixed(std::string_view prefix) const {
+    return is_ok() ? *this : Status(code_, std::string(prefix) + message_);
+  }
 
  private:
   Status(Code code, std::string msg) : code_(code), message_(std::move(msg)) {}

@@ -480,6 +480,7 @@ int walk_headless(const Options& o, Walkthrough& walk, const Camera& start) {
       if (Status s = write_png(file, walk.view().width, walk.view().height, walk.image()); !s) return fail(s);
     }
   }
+  const CollisionGrid::Counters grid = walker ? walker->grid().counters() : CollisionGrid::Counters{};
   nlohmann::json summary = {{"frames", frames},
                             {"p50_frame_ms", percentile(frame_ms, 0.5)},
                             {"p95_frame_ms", percentile(frame_ms, 0.95)},
@@ -494,8 +495,8 @@ int walk_headless(const Options& o, Walkthrough& walk, const Camera& start) {
                             {"collision_queries", walker ? walker->queries() : 0},
                             {"max_collision_bytes", collision_max},
                             {"collision_cache_budget", walker ? o.collision_cache : 0},
-                            {"collision_loads", walker ? walker->grid().counters().loads : 0},
-                            {"collision_errors", walker ? walker->grid().counters().errors : 0}};
+                            {"collision_loads", grid.loads},
+                            {"collision_errors", grid.errors}};
   if (ratio_frames > 0) {
     summary["mean_touched_oracle_ratio"] = ratio_sum / double(ratio_frames);
     summary["max_touched_oracle_ratio"] = ratio_max;
@@ -515,12 +516,11 @@ int walk_headless(const Options& o, Walkthrough& walk, const Camera& start) {
                                         ratio_max)
                           : std::string());
   if (walker) {
-    const CollisionGrid::Counters c = walker->grid().counters();
     fmt::print(stderr, "frontier-view: collision grid: {} of {} bricks read ({:.1f} ms), at most {:.1f} of {:.1f} MiB "
                        "resident, {} evicted, {} unreadable\n",
-               c.loads, c.bricks, c.load_ms, double(collision_max) / 1048576.0, double(o.collision_cache) / 1048576.0,
-               c.evictions, c.errors);
-    if (c.errors > 0) fmt::print(stderr, "frontier-view: {}\n", walker->grid().error().to_string());
+               grid.loads, grid.bricks, grid.load_ms, double(collision_max) / 1048576.0,
+               double(o.collision_cache) / 1048576.0, grid.evictions, grid.errors);
+    if (grid.errors > 0) fmt::print(stderr, "frontier-view: {}\n", walker->grid().error().to_string());
   }
   return 0;
 }
