@@ -95,6 +95,36 @@ struct FrustumCaster::CellCache {
   std::vector<Incidence> entries;
 };
 
+namespace {
+// The cells lone pixel walks arrived in last, by the cell and face they left: the next pixel's
+// ray mostly arrives in the same cell, which a box test confirms (KdTree::arrives_in) for
+// less than the rope descent costs. Direct-mapped; an entry only ever suggests a cell.
+struct NextCells {
+  static constexpr size_t kSlots = 256;
+  std::array<int64_t, kSlots> key;
+  std::array<int32_t, kSlots> cell;
+  NextCells() { clear(); }
+  void clear() { key.fill(-1); }
+  int32_t arrival(const KdTree& tree, int32_t from, const Ray& ray, const KdTree::Exit& e) {
+    if (e.face < 0) return KdTree::kNone;
+    const int64_t k = int64_t(from) * 6 + e.face;
+    const size_t slot = size_t(k) % kSlots;
+    if (key[slot] == k && tree.arrives_in(from, ray, e, cell[slot])) return cell[slot];
+    const int32_t next = tree.arrival(from, ray, e);
+    key[slot] = k;
+    cell[slot] = next;
+    return next;
+  }
+};
+
+// A node on gather_ahead's stack: its region and the frustum planes it may still straddle.
+struct AheadNode {
+  int32_t node;
+  uint8_t planes;
+  Aabb box;
+};
+}  // namespace
+
 struct FrustumCaster::Worker {
   std::array<std::vector<Job>, 4> children;  // next level, by quadrant
   std::vector<Incidence> arena_out;          // incidence lists of those children
@@ -109,8 +139,10 @@ struct FrustumCaster::Worker {
   std::vector<uint32_t> slot_stamp, slot;
   uint32_t stamp = 0;
   std::vector<Pixel> open;
-  std::vector<std::pair<int32_t, Aabb>> nodes;  // gather_ahead's descent stack,
-  std::vector<uint32_t> ahead;                  // the elements it found
+  NextCells next_cells;                         // lone pixel walks' arrivals
+  std::vector<AheadNode> nodes;                 // gather_ahead's descent stack,
+  std::vector<uint32_t> ahead;                  // the elements it found,
+  std::vector<std::pair<uint32_t, Aabb>> ahead_refs;  // a reference of each and its bounds there
   std::vector<int32_t> ahead_cells;             // and the cells it read them from
   Counters counters;
   uint16_t index = 0;  // which arenas_in_ slot its arena_out becomes
@@ -178,6 +210,7 @@ void FrustumCaster::begin(const View& view, SampleBuffer& buffer, CellMarks& mar
     w->arena_out.clear();
     w->remaining.clear();
     w->parked.clear();
+    w->next_cells.clear();
   }
   arenas_in_.clear();
   current_.clear();
@@ -332,6 +365,7 @@ void FrustumCaster::park(const Job& job, Worker& w) const {
 void FrustumCaster::tree_changed() {
   const size_t cells = tree_.cells().size();
   marks_->grow(cells);
+  for (auto& w : workers_) w->next_cells.clear();  // cells may have become subtrees
   if (cell_cache_count_ < cells) {
     // Entries of this frame move along; new cells start unstamped. Grown geometrically: a
     // walk grafts a few cells at a time.
@@ -507,7 +541,7 @@ void FrustumCaster::resolve_by_walking(const Job& job, Worker& w, bool from_next
           start = tree_.enter_root(ray, tmin, t_enter, face);
         }
       } else if (from_next_cell) {
-        start = tree_.arrival(job.cell, ray, tree_.exit(job.cell, ray));
+        start = w.next_cells.arrival(tree_, job.cell, ray, tree_.exit(job.cell, ray));
       }
       bool parked = false;
       const RayHit hit = walk_pixel(x, y, ray, tmin, start, w, parked);
@@ -559,7 +593,7 @@ RayHit FrustumCaster::walk_pixel(int x, int y, const Ray& ray, double tmin, int3
       }
     }
     if (best.hit()) return best;
-    cell = tree_.arrival(cell, ray, e);
+    cell = w.next_cells.arrival(tree_, cell, ray, e);
   }
   return {};
 }
@@ -663,7 +697,7 @@ void FrustumCaster::process(Job job, Worker& w) {
       n = job.inc_count;
     }
 
-    if (n > 0 && fill_plane(job, list, n, rays, tmins, w)) return;
+    if (n > 0 && fill_plane(job, list, n, rays, tmins, &tree_.cell(job.cell).bounds, w)) return;
     if (n > 0) {
       // Either resolve the frustum's pixels against this cell's elements now (cheap when the
       // elements' screen footprints are small against the frustum), or subdivide (§3.2).
@@ -745,30 +779,53 @@ bool FrustumCaster::gather_ahead(const Job& job, const std::array<Ray, 4>& rays,
       planes[plane_count++] = n;
     }
   }
-  auto inside = [&](const Aabb& box) {
+  std::array<Vec3, 7> reach;  // |normal| per axis: a box's half extent along the normal
+  for (size_t k = 0; k < plane_count; ++k) reach[k] = glm::abs(planes[k]);
+  const Vec3& f = view_.forward;
+  const Vec3 f_reach = glm::abs(f);
+  // The planes a box may still straddle, as bits (kNearPlane: the near plane); a box inside a
+  // plane has every sub-box inside it, so descendants and references skip that plane. The
+  // tests are classify() and in_front(), with the same tolerances.
+  constexpr uint8_t kNearPlane = 0x80;
+  const uint8_t all_planes = uint8_t(kNearPlane | ((1u << plane_count) - 1u));
+  // The remaining planes of `box`, or -1 when it is not ahead or lies outside a plane.
+  auto inside = [&](const Aabb& box, uint8_t mask) -> int {
     bool ahead = false;
     for (int a = 0; a < 3; ++a) {
       ahead = ahead || (pos[size_t(a)] && box.hi[a] >= here.hi[a]) || (neg[size_t(a)] && box.lo[a] <= here.lo[a]);
     }
-    if (!ahead) return false;
+    if (!ahead) return -1;
+    const Vec3 c = box.center() - view_.eye;
+    const Vec3 h = 0.5 * box.extent();
     for (size_t k = 0; k < plane_count; ++k) {
-      if (classify(planes[k], box) == Side::Outside) return false;
+      if (!(mask & (1u << k))) continue;
+      ++w.counters.plane_tests;
+      const double s = glm::dot(planes[k], c), r = glm::dot(reach[k], h);
+      const double tol = 1e-9 * (std::abs(s) + r) + 1e-300;
+      if (s + r < -tol) return -1;
+      if (s - r > tol) mask = uint8_t(mask & ~(1u << k));
     }
-    return in_front(box);
+    if (mask & kNearPlane) {
+      const double s = glm::dot(f, c), r = glm::dot(f_reach, h);
+      const double tol = 1e-9 * (std::abs(s + r) + glm::length(c) + 1e-300);
+      if (s + r < view_.near - tol) return -1;
+      if (s - r > view_.near + tol) mask = uint8_t(mask & ~kNearPlane);
+    }
+    return mask;
   };
   w.ahead.clear();
+  w.ahead_refs.clear();
   w.ahead_cells.clear();
   w.nodes.clear();
-  w.nodes.emplace_back(0, tree_.bounds());
+  w.nodes.push_back({0, all_planes, tree_.bounds()});
   size_t budget = kAheadBudget;
   while (!w.nodes.empty()) {
     if (budget-- == 0) return false;
-    w.counters.plane_tests += plane_count;
-    auto [n, box] = w.nodes.back();
+    const AheadNode top = w.nodes.back();
     w.nodes.pop_back();
-    const KdTree::Node& node = tree_.nodes()[size_t(n)];
+    const KdTree::Node& node = tree_.nodes()[size_t(top.node)];
     if (node.is_link()) {
-      w.nodes.emplace_back(int32_t(node.child), box);
+      w.nodes.push_back({int32_t(node.child), top.planes, top.box});
       continue;
     }
     if (node.is_leaf()) {
@@ -776,31 +833,44 @@ bool FrustumCaster::gather_ahead(const Job& job, const std::array<Ray, 4>& rays,
       if (c == job.cell) continue;
       const KdTree::Cell& cell = tree_.cell(c);
       const bool missing = gate_ != nullptr && gate_->missing(c);
-      if (!(cell.count > 0 || missing) || !inside(cell.content)) continue;
+      if (!(cell.count > 0 || missing)) continue;
+      const int cell_planes = inside(cell.content, top.planes);
+      if (cell_planes < 0) continue;
       if (missing) return false;
       w.ahead_cells.push_back(c);
       for (uint32_t r = cell.first; r < cell.first + cell.count; ++r) {
         if (budget-- == 0) return false;
-        if (!inside(tree_.ref_bounds(r))) continue;
+        const Aabb& bounds = tree_.ref_bounds(r);
+        const int ref_planes = inside(bounds, uint8_t(cell_planes));
+        if (ref_planes < 0) continue;
         const uint32_t prim = tree_.ref(r);
-        if (std::find(w.ahead.begin(), w.ahead.end(), prim) != w.ahead.end()) continue;
+        const auto found = std::find(w.ahead.begin(), w.ahead.end(), prim);
+        if (found != w.ahead.end()) {
+          w.ahead_refs[size_t(found - w.ahead.begin())].second.extend(bounds);
+          continue;
+        }
+        // Only a plane the bounds straddle can have the element wholly behind it.
         bool out = false;
-        for (size_t k = 0; k < plane_count && !out; ++k) out = scene_.below_plane(prim, view_.eye, planes[k]);
+        for (size_t k = 0; k < plane_count && !out; ++k) {
+          out = (ref_planes & (1 << k)) && scene_.below_plane(prim, view_.eye, planes[k]);
+        }
         if (out) continue;
         if (w.ahead.size() == kAheadLimit) return false;
         w.ahead.push_back(prim);
+        w.ahead_refs.emplace_back(r, bounds);
       }
       continue;
     }
     const int a = int(node.axis_or_leaf);
-    Aabb lower = box, upper = box;
+    Aabb lower = top.box, upper = top.box;
     lower.hi[a] = node.split;
     upper.lo[a] = node.split;
+    const int lower_planes = inside(lower, top.planes), upper_planes = inside(upper, top.planes);
     // Nearer child on top of the stack: a crowded frustum meets its limit sooner.
     const bool upper_near = view_.eye[a] >= node.split;
-    if (!upper_near && inside(upper)) w.nodes.emplace_back(int32_t(node.child), upper);
-    if (inside(lower)) w.nodes.emplace_back(n + 1, lower);
-    if (upper_near && inside(upper)) w.nodes.emplace_back(int32_t(node.child), upper);
+    if (!upper_near && upper_planes >= 0) w.nodes.push_back({int32_t(node.child), uint8_t(upper_planes), upper});
+    if (lower_planes >= 0) w.nodes.push_back({top.node + 1, uint8_t(lower_planes), lower});
+    if (upper_near && upper_planes >= 0) w.nodes.push_back({int32_t(node.child), uint8_t(upper_planes), upper});
   }
   for (int32_t c : w.ahead_cells) {
     if (marks_->mark(c)) ++w.counters.cells_touched;
@@ -809,42 +879,25 @@ bool FrustumCaster::gather_ahead(const Job& job, const std::array<Ray, 4>& rays,
 }
 
 // Every open pixel of the frustum against the elements gather_ahead found, along the whole
-// ray. When the corner rays all hit one of them, a triangle, inside, the pixels take their
-// distance from its plane (the argument of fill_plane, with no cell to stay in: nothing else
-// lies ahead but the other elements found).
+// ray: they are listed like a cell's elements (screen rectangles, nearest first), and a pixel
+// that hits none of them is background. When the corner rays all hit one of them, a triangle,
+// inside, the pixels take their distance from its plane (fill_plane with no cell to stay in:
+// nothing else lies ahead but the other elements found).
 void FrustumCaster::resolve_against_ahead(const Job& job, const std::array<Ray, 4>& rays,
                                           const std::array<double, 4>& tmins, Worker& w) {
   if (w.ahead.empty()) {
     fill_background(job, w);
     return;
   }
-  for (uint32_t element : w.ahead) {
-    const PrimRef& ref = scene_.prims[element];
-    Vec3 normal;
-    double max_t;
-    if (ref.kind != PrimKind::Triangle ||
-        !corners_on_triangle(scene_.triangles[ref.index], rays, tmins, nullptr, normal, max_t, w)) {
-      continue;
-    }
-    w.occluders.clear();
-    for (uint32_t other : w.ahead) {
-      if (other != element) w.occluders.push_back(other);
-    }
-    fill_from_plane(job, element, normal, w);
-    return;
-  }
-  const size_t W = size_t(view_.width);
-  for (int y = job.y0; y <= job.y1; ++y) {
-    for (int x = job.x0; x <= job.x1; ++x) {
-      const size_t i = size_t(y) * W + size_t(x);
-      if (buffer_->confirmed(i)) continue;
-      const Ray ray = view_.ray(x, y);
-      const double tmin = view_.tmin(ray);
-      RayHit best;
-      for (uint32_t prim : w.ahead) offer(prim, ray, tmin, kInfinity, best, w.counters);
-      confirm(job, x, y, best.prim, best.t, ray, w);
-    }
-  }
+  w.scratch.clear();
+  for (const auto& [r, box] : w.ahead_refs) w.scratch.push_back(incidence(r, box));
+  std::sort(w.scratch.begin(), w.scratch.end(),
+            [](const Incidence& a, const Incidence& b) { return a.distance < b.distance; });
+  const Incidence* list = w.scratch.data();
+  const uint32_t n = uint32_t(w.scratch.size());
+  w.counters.primitives_tested += n;
+  if (fill_plane(job, list, n, rays, tmins, nullptr, w)) return;
+  resolve_pixel_major(job, list, n, true, w);
 }
 
 // The references of a cell with their screen rectangles and eye distances, sorted nearest
@@ -860,6 +913,38 @@ bool FrustumCaster::first_pixel_visit(int32_t cell) const {
   return cache.seen.exchange(frame_, std::memory_order_relaxed) != frame_;
 }
 
+// The incidence entry of reference r whose element lies within `box` (in front of the eye):
+// its screen rectangle, a lower bound on its distance and its cone of directions.
+FrustumCaster::Incidence FrustumCaster::incidence(uint32_t r, const Aabb& box) const {
+  PixelRect rect;
+  const bool bounded = view_.project(box, rect.x0, rect.y0, rect.x1, rect.y1);
+  if (!bounded) rect = {0, 0, view_.width - 1, view_.height - 1};
+  // Nearest first by a lower bound on any hit: the bounds' distance, or for a sphere or cone
+  // the surface's own bound when larger (a box corner comes nearer than the surface by up
+  // to 0.73 r; in a heap of overlapping spheres that adds dozens of tests per pixel).
+  const double distance = std::max(distance_to_box(view_.eye, box), scene_.distance_bound(tree_.ref(r), view_.eye));
+  Incidence inc{r, float(distance * (1.0 - 1e-6)), int16_t(rect.x0), int16_t(rect.y0), int16_t(rect.x1),
+                int16_t(rect.y1), 0, bounded, 0.0f, 0.0f, 0.0f, -2.0f};
+  Vec3 centre;
+  double radius;
+  if (scene_.bounding_sphere(tree_.ref(r), centre, radius)) {
+    const Vec3 v = centre - view_.eye;
+    const double d = glm::length(v);
+    if (d > radius * (1.0 + 1e-6)) {
+      // The axis and the cosine are rounded to float: the dot product moves by at most
+      // ~1e-7; a margin of 1e-6 (about a pixel's angle at 513² and 45°) keeps the cone
+      // conservative.
+      const Vec3 axis = v / d;
+      const double s = radius / d;
+      inc.axis_x = float(axis.x);
+      inc.axis_y = float(axis.y);
+      inc.axis_z = float(axis.z);
+      inc.cos_reach = float(std::sqrt(std::max(0.0, 1.0 - s * s)) - 1e-6);
+    }
+  }
+  return inc;
+}
+
 const std::vector<FrustumCaster::Incidence>& FrustumCaster::cell_entries(int32_t cell) const {
   CellCache& cache = cell_cache_[size_t(cell)];
   if (cache.stamp.load(std::memory_order_acquire) == frame_) return cache.entries;
@@ -869,34 +954,7 @@ const std::vector<FrustumCaster::Incidence>& FrustumCaster::cell_entries(int32_t
   const KdTree::Cell& c = tree_.cell(cell);
   for (uint32_t r = c.first; r < c.first + c.count; ++r) {
     const Aabb& box = tree_.ref_bounds(r);
-    if (!in_front(box)) continue;
-    PixelRect rect;
-    const bool bounded = view_.project(box, rect.x0, rect.y0, rect.x1, rect.y1);
-    if (!bounded) rect = {0, 0, view_.width - 1, view_.height - 1};
-    // Nearest first by a lower bound on any hit: the bounds' distance, or for a sphere or cone
-    // the surface's own bound when larger (a box corner comes nearer than the surface by up
-    // to 0.73 r; in a heap of overlapping spheres that adds dozens of tests per pixel).
-    const double distance = std::max(distance_to_box(view_.eye, box), scene_.distance_bound(tree_.ref(r), view_.eye));
-    Incidence inc{r, float(distance * (1.0 - 1e-6)), int16_t(rect.x0), int16_t(rect.y0), int16_t(rect.x1),
-                  int16_t(rect.y1), 0, bounded, 0.0f, 0.0f, 0.0f, -2.0f};
-    Vec3 centre;
-    double radius;
-    if (scene_.bounding_sphere(tree_.ref(r), centre, radius)) {
-      const Vec3 v = centre - view_.eye;
-      const double d = glm::length(v);
-      if (d > radius * (1.0 + 1e-6)) {
-        // The axis and the cosine are rounded to float: the dot product moves by at most
-        // ~1e-7; a margin of 1e-6 (about a pixel's angle at 513² and 45°) keeps the cone
-        // conservative.
-        const Vec3 axis = v / d;
-        const double s = radius / d;
-        inc.axis_x = float(axis.x);
-        inc.axis_y = float(axis.y);
-        inc.axis_z = float(axis.z);
-        inc.cos_reach = float(std::sqrt(std::max(0.0, 1.0 - s * s)) - 1e-6);
-      }
-    }
-    cache.entries.push_back(inc);
+    if (in_front(box)) cache.entries.push_back(incidence(r, box));
   }
   std::sort(cache.entries.begin(), cache.entries.end(),
             [](const Incidence& a, const Incidence& b) { return a.distance < b.distance; });
@@ -928,7 +986,7 @@ double FrustumCaster::footprint(const Job& job, const Incidence* list, uint32_t 
 size_t FrustumCaster::resolve_in_cell(const Job& job, const Incidence* list, uint32_t n, bool have_rects,
                                       Worker& w) {
   const size_t npix = size_t(job.x1 - job.x0 + 1) * size_t(job.y1 - job.y0 + 1);
-  if (npix * n <= kPixelMajorWork) return resolve_pixel_major(job, list, n, w);
+  if (npix * n <= kPixelMajorWork) return resolve_pixel_major(job, list, n, false, w);
   if (!have_rects) footprint(job, list, n, w);
   const size_t W = size_t(view_.width);
   if (++w.stamp == 0) {
@@ -985,7 +1043,10 @@ size_t FrustumCaster::resolve_in_cell(const Job& job, const Incidence* list, uin
 
 // The same for small frusta, pixel by pixel: the list is sorted nearest first, so a pixel stops
 // at the first element whose bounds lie beyond its best hit (early termination in depth).
-size_t FrustumCaster::resolve_pixel_major(const Job& job, const Incidence* list, uint32_t n, Worker& w) {
+// `to_infinity`: the list holds everything the pixels can still hit (gather_ahead), so hits
+// count along the whole ray and a pixel that hits nothing is background.
+size_t FrustumCaster::resolve_pixel_major(const Job& job, const Incidence* list, uint32_t n, bool to_infinity,
+                                          Worker& w) {
   const size_t W = size_t(view_.width);
   size_t remaining = 0;
   for (int y = job.y0; y <= job.y1; ++y) {
@@ -1003,8 +1064,12 @@ size_t FrustumCaster::resolve_pixel_major(const Job& job, const Incidence* list,
         if (!have_ray) {
           ray = view_.ray(x, y);
           tmin = view_.tmin(ray);
-          const KdTree::Exit exit = tree_.exit(job.cell, ray);
-          tmax = exit.t + cell_slack(exit.t, slack_scale_);
+          if (to_infinity) {
+            tmax = kInfinity;
+          } else {
+            const KdTree::Exit exit = tree_.exit(job.cell, ray);
+            tmax = exit.t + cell_slack(exit.t, slack_scale_);
+          }
           have_ray = true;
         }
         if (!e.reaches(ray.dir)) continue;
@@ -1013,6 +1078,9 @@ size_t FrustumCaster::resolve_pixel_major(const Job& job, const Incidence* list,
       }
       if (best.hit()) {
         confirm(job, x, y, best.prim, best.t, ray, w);
+      } else if (to_infinity) {
+        if (!have_ray) ray = view_.ray(x, y);
+        confirm(job, x, y, kNoPrim, kInfinity, ray, w);
       } else {
         ++remaining;
       }
@@ -1071,10 +1139,9 @@ bool FrustumCaster::corners_and_fill(const Job& job, const Incidence* list, uint
 // the section, so the corners bound it) are tested per pixel. Returns false, having written
 // nothing, when no triangle qualifies or too many elements could occlude it.
 bool FrustumCaster::fill_plane(const Job& job, const Incidence* list, uint32_t n, const std::array<Ray, 4>& rays,
-                               const std::array<double, 4>& tmins, Worker& w) {
+                               const std::array<double, 4>& tmins, const Aabb* cell, Worker& w) {
   const int nx = job.x1 - job.x0 + 1, ny = job.y1 - job.y0 + 1;
   if (nx * ny < kPlaneFillMinPixels) return false;
-  const Aabb& cell = tree_.cell(job.cell).bounds;
   uint32_t candidate = n, tried = 0;
   double max_t = 0.0;
   Vec3 normal;
@@ -1084,7 +1151,7 @@ bool FrustumCaster::fill_plane(const Job& job, const Incidence* list, uint32_t n
     const PrimRef& ref = scene_.prims[tree_.ref(e.ref)];
     if (ref.kind != PrimKind::Triangle) continue;
     ++tried;
-    if (corners_on_triangle(scene_.triangles[ref.index], rays, tmins, &cell, normal, max_t, w)) candidate = j;
+    if (corners_on_triangle(scene_.triangles[ref.index], rays, tmins, cell, normal, max_t, w)) candidate = j;
   }
   if (candidate == n) return false;
   w.occluders.clear();

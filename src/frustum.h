@@ -127,6 +127,7 @@ class FrustumCaster {
   };
   struct CellCache;
   const std::vector<Incidence>& cell_entries(int32_t cell) const;
+  Incidence incidence(uint32_t r, const Aabb& box) const;
   // True for the first lone pixel walk into a cell not yet listed this frame (see walk_pixel).
   bool first_pixel_visit(int32_t cell) const;
   // Walks one pixel; parks it (and returns no hit with `parked` set) at a missing cell.
@@ -134,14 +135,14 @@ class FrustumCaster {
   bool gate_missing(int32_t cell) const;
   void park(const Job& job, Worker& w) const;
   double footprint(const Job& job, const Incidence* list, uint32_t n, Worker& w) const;
-  size_t resolve_pixel_major(const Job& job, const Incidence* list, uint32_t n, Worker& w);
+  size_t resolve_pixel_major(const Job& job, const Incidence* list, uint32_t n, bool to_infinity, Worker& w);
   size_t resolve_in_cell(const Job& job, const Incidence* list, uint32_t n, bool have_rects, Worker& w);
   bool corners_and_fill(const Job& job, const Incidence* list, uint32_t n, const std::array<Ray, 4>& rays,
                         const std::array<double, 4>& tmins, Worker& w);
   void fill_background(const Job& job, Worker& w);
   bool try_fill(const Job& job, const Incidence* list, uint32_t n, uint32_t element, Worker& w);
   bool fill_plane(const Job& job, const Incidence* list, uint32_t n, const std::array<Ray, 4>& rays,
-                  const std::array<double, 4>& tmins, Worker& w);
+                  const std::array<double, 4>& tmins, const Aabb* cell, Worker& w);
   bool corners_on_triangle(const Triangle& tri, const std::array<Ray, 4>& rays, const std::array<double, 4>& tmins,
                            const Aabb* cell, Vec3& normal, double& max_t, Worker& w) const;
   void fill_from_plane(const Job& job, uint32_t element, const Vec3& normal, Worker& w);

@@ -240,7 +240,10 @@ TEST(EngineHardCases, FilledFloorsAndWallsMatchBruteForce) {
     const Vec3 ats[] = {Vec3(0, 0, 0), Vec3(5, 5, 0.2), Vec3(0.2, 5, 0.5), Vec3(0, 2, 1)};
     uint64_t fills = 0;
     for (size_t k = 0; k < 4; ++k) {
-      const View view(camera_at(eyes[k] + offset, ats[k] + offset, 60.0), 97, 89);
+      // Odd views have a near plane: the floor reaches behind the eye and is clipped there
+      // (View::project), so its screen rectangles shrink to where it is seen.
+      const double near = k % 2 ? 0.7 : 0.0;
+      const View view(camera_at(eyes[k] + offset, ats[k] + offset, 60.0, near), 97, 89);
       expect_matches_brute(scene, tree, view, "floor view " + std::to_string(k) + (offset.x != 0.0 ? " far" : ""));
       fills += frustum_counters(scene, tree, view).frustum_fills;
     }
@@ -280,13 +283,59 @@ TEST(EngineHardCases, LookAheadMatchesBruteForce) {
     const Vec3 ats[] = {Vec3(0, 0, 1.8), Vec3(2, 1, 2.5), Vec3(0.01, 0.02, 0), Vec3(0, 0, 0.3), Vec3(0, 0, 1)};
     uint64_t lookaheads = 0;
     for (size_t k = 0; k < 5; ++k) {
-      const View view(camera_at(eyes[k] + offset, ats[k] + offset, k == 1 ? 100.0 : 50.0), 129, 121);
+      const double near = k == 0 || k == 3 ? 0.5 : 0.0;  // clips the floor behind the eye
+      const View view(camera_at(eyes[k] + offset, ats[k] + offset, k == 1 ? 100.0 : 50.0, near), 129, 121);
       expect_matches_brute(scene, tree, view, "look-ahead view " + std::to_string(k) + (offset.x != 0.0 ? " far" : ""));
       // At this image size the default leaf makes every frustum start small: count with 5.
       lookaheads += frustum_counters(scene, tree, view, 5).frustum_lookaheads;
     }
     EXPECT_GT(lookaheads, 50u) << "frusta over the floor and the sky should resolve by looking ahead";
   }
+}
+
+// A box's screen rectangle holds every pixel whose ray hits the box beyond the near plane,
+// also for boxes reaching behind the eye (clipped at the near plane). Floors under the eye get
+// rectangles smaller than the view.
+TEST(EngineHardCases, ScreenRectanglesHoldEveryHitBeyondTheNearPlane) {
+  RecordProperty("methods", "View::project against ray-box intersection at every pixel");
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  size_t clipped = 0, smaller = 0, hits = 0;
+  for (int s = 0; s < 600; ++s) {
+    const Vec3 offset = s % 3 == 2 ? Vec3(1e6, -1e6, 1e6) : Vec3(0.0);
+    const double near = s % 4 == 0 ? 0.0 : 0.05 + std::abs(u(rng));
+    const Vec3 eye = Vec3(u(rng), u(rng), u(rng)) + offset;
+    const View view(camera_at(eye, eye + Vec3(u(rng), u(rng), 0.3 * u(rng)) + Vec3(0.1, 0, 0), 30.0 + 40.0 * std::abs(u(rng)), near), 40, 33);
+    Aabb box;
+    const Vec3 c = eye + 2.0 * Vec3(u(rng), u(rng), u(rng));
+    const Vec3 h = s % 2 ? Vec3(3.0 * std::abs(u(rng)), 3.0 * std::abs(u(rng)), 1e-3)  // a floor
+                         : Vec3(std::abs(u(rng)), std::abs(u(rng)), std::abs(u(rng)));
+    box.lo = c - h;
+    box.hi = c + h;
+    int x0, y0, x1, y1;
+    if (!view.project(box, x0, y0, x1, y1)) continue;
+    bool behind = false;
+    for (int k = 0; k < 8; ++k) {
+      const Vec3 p(k & 1 ? box.hi.x : box.lo.x, k & 2 ? box.hi.y : box.lo.y, k & 4 ? box.hi.z : box.lo.z);
+      behind = behind || glm::dot(p - eye, view.forward) < near;
+    }
+    clipped += behind ? 1 : 0;
+    if (behind && (x1 - x0 + 1) * (y1 - y0 + 1) < view.width * view.height / 2) ++smaller;
+    for (int y = 0; y < view.height; ++y) {
+      for (int x = 0; x < view.width; ++x) {
+        const Ray ray = view.ray(x, y);
+        double t0, t1;
+        if (!ray_box_interval(ray, box, t0, t1) || t1 < view.tmin(ray)) continue;
+        ++hits;
+        ASSERT_TRUE(x >= x0 && x <= x1 && y >= y0 && y <= y1)
+            << "box " << s << " pixel " << x << "," << y << " outside [" << x0 << "," << x1 << "]x[" << y0 << "," << y1
+            << "] near " << near;
+      }
+    }
+  }
+  EXPECT_GT(clipped, 100u) << "boxes reaching behind the near plane should be bounded";
+  EXPECT_GT(smaller, 20u) << "clipped boxes should cover less than the view";
+  EXPECT_GT(hits, 10000u);
 }
 
 // A closed UV sphere of triangles: no background pixel may appear inside its silhouette.
