@@ -80,7 +80,7 @@ struct FrustumCaster::Incidence {
   float distance;          // eye to the bounds, rounded down (a lower bound on any hit)
   int16_t x0, y0, x1, y1;  // screen rectangle of the bounds (whole view if unbounded)
   uint8_t straddle;        // planes (kLeft...) the bounds straddle; others: inside
-  bool bounded;            // the rectangle is exact (bounds in front of the eye)
+  bool bounded;            // the rectangle holds every pixel that can hit the bounds (View::project)
   // Cone of directions from the eye that can reach the element (its bounding sphere): a unit
   // ray direction d can hit it only if dot(d, axis) >= cos_reach. -2 (no cone) passes all.
   // Exact for spheres, so a sphere's rectangle corners, a quarter of its area, are never
@@ -120,7 +120,7 @@ struct NextCells {
 // A node on gather_ahead's stack: its region and the frustum planes it may still straddle.
 struct AheadNode {
   int32_t node;
-  uint8_t planes;
+  uint16_t planes;
   Aabb box;
 };
 }  // namespace
@@ -698,6 +698,7 @@ void FrustumCaster::process(Job job, Worker& w) {
     }
 
     if (n > 0 && fill_plane(job, list, n, rays, tmins, &tree_.cell(job.cell).bounds, w)) return;
+    if (n > 0 && !job.small(leaf_) && fill_plane_ahead(job, list, n, rays, tmins, w)) return;
     if (n > 0) {
       // Either resolve the frustum's pixels against this cell's elements now (cheap when the
       // elements' screen footprints are small against the frustum), or subdivide (§3.2).
@@ -736,7 +737,7 @@ void FrustumCaster::process(Job job, Worker& w) {
     }
     // The frustum goes on through several cells. Before splitting it, ask the tree whether
     // only a few elements (or none) lie ahead of it: then its pixels test just those.
-    if (!job.small(leaf_) && job.small(kAheadMaxSpan * leaf_) && gather_ahead(job, rays, w)) {
+    if (!job.small(leaf_) && job.small(kAheadMaxSpan * leaf_) && gather_ahead(job, rays, nullptr, kAheadLimit, w)) {
       ++w.counters.frustum_lookaheads;
       resolve_against_ahead(job, rays, tmins, w);
       return;
@@ -759,10 +760,22 @@ void FrustumCaster::process(Job job, Worker& w) {
 // current cell (the frustum crossed those cells whole), and leaves the current cell through a
 // face its direction points to, so what lies ahead is beyond that face. On success, the cells
 // whose references it read count as touched.
-bool FrustumCaster::gather_ahead(const Job& job, const std::array<Ray, 4>& rays, Worker& w) const {
-  std::array<Vec3, 7> planes = {column_normal_[size_t(job.x0)], -column_normal_[size_t(job.x1)],
+bool FrustumCaster::gather_ahead(const Job& job, const std::array<Ray, 4>& rays, const Triangle* before,
+                                 size_t limit, Worker& w) const {
+  // Planes as normal · (p - origin) >= 0 for what may lie inside; all but `before`'s pass
+  // through the eye.
+  std::array<Vec3, 8> planes = {column_normal_[size_t(job.x0)], -column_normal_[size_t(job.x1)],
                                 row_normal_[size_t(job.y0)], -row_normal_[size_t(job.y1)]};
+  std::array<Vec3, 8> origins;
+  origins.fill(view_.eye);
   size_t plane_count = 4;
+  if (before != nullptr) {
+    // Only what lies in front of the triangle's plane, seen from the eye, can come before it.
+    Vec3 n = glm::cross(before->v1 - before->v0, before->v2 - before->v0);
+    if (glm::dot(n, view_.eye - before->v0) < 0.0) n = -n;
+    planes[plane_count] = n;
+    origins[plane_count++] = before->v0;
+  }
   // Every ray of the frustum is inside the current cell and leaves it through a face its
   // direction points to: what lies ahead is beyond one of those faces. An axis on which all
   // directions agree in sign also separates: the frustum lies on one side of the eye's plane.
@@ -779,17 +792,21 @@ bool FrustumCaster::gather_ahead(const Job& job, const std::array<Ray, 4>& rays,
       planes[plane_count++] = n;
     }
   }
-  std::array<Vec3, 7> reach;  // |normal| per axis: a box's half extent along the normal
-  for (size_t k = 0; k < plane_count; ++k) reach[k] = glm::abs(planes[k]);
+  std::array<Vec3, 8> reach;  // |normal| per axis: a box's half extent along the normal
+  std::array<double, 8> offset;  // normal · (origin - eye)
+  for (size_t k = 0; k < plane_count; ++k) {
+    reach[k] = glm::abs(planes[k]);
+    offset[k] = glm::dot(planes[k], origins[k] - view_.eye);
+  }
   const Vec3& f = view_.forward;
   const Vec3 f_reach = glm::abs(f);
   // The planes a box may still straddle, as bits (kNearPlane: the near plane); a box inside a
   // plane has every sub-box inside it, so descendants and references skip that plane. The
   // tests are classify() and in_front(), with the same tolerances.
-  constexpr uint8_t kNearPlane = 0x80;
-  const uint8_t all_planes = uint8_t(kNearPlane | ((1u << plane_count) - 1u));
+  constexpr uint16_t kNearPlane = 0x100;
+  const uint16_t all_planes = uint16_t(kNearPlane | ((1u << plane_count) - 1u));
   // The remaining planes of `box`, or -1 when it is not ahead or lies outside a plane.
-  auto inside = [&](const Aabb& box, uint8_t mask) -> int {
+  auto inside = [&](const Aabb& box, uint16_t mask) -> int {
     bool ahead = false;
     for (int a = 0; a < 3; ++a) {
       ahead = ahead || (pos[size_t(a)] && box.hi[a] >= here.hi[a]) || (neg[size_t(a)] && box.lo[a] <= here.lo[a]);
@@ -800,16 +817,16 @@ bool FrustumCaster::gather_ahead(const Job& job, const std::array<Ray, 4>& rays,
     for (size_t k = 0; k < plane_count; ++k) {
       if (!(mask & (1u << k))) continue;
       ++w.counters.plane_tests;
-      const double s = glm::dot(planes[k], c), r = glm::dot(reach[k], h);
-      const double tol = 1e-9 * (std::abs(s) + r) + 1e-300;
+      const double s = glm::dot(planes[k], c) - offset[k], r = glm::dot(reach[k], h);
+      const double tol = 1e-9 * (std::abs(s) + std::abs(offset[k]) + r) + 1e-300;
       if (s + r < -tol) return -1;
-      if (s - r > tol) mask = uint8_t(mask & ~(1u << k));
+      if (s - r > tol) mask = uint16_t(mask & ~(1u << k));
     }
     if (mask & kNearPlane) {
       const double s = glm::dot(f, c), r = glm::dot(f_reach, h);
       const double tol = 1e-9 * (std::abs(s + r) + glm::length(c) + 1e-300);
       if (s + r < view_.near - tol) return -1;
-      if (s - r > view_.near + tol) mask = uint8_t(mask & ~kNearPlane);
+      if (s - r > view_.near + tol) mask = uint16_t(mask & ~kNearPlane);
     }
     return mask;
   };
@@ -841,7 +858,7 @@ bool FrustumCaster::gather_ahead(const Job& job, const std::array<Ray, 4>& rays,
       for (uint32_t r = cell.first; r < cell.first + cell.count; ++r) {
         if (budget-- == 0) return false;
         const Aabb& bounds = tree_.ref_bounds(r);
-        const int ref_planes = inside(bounds, uint8_t(cell_planes));
+        const int ref_planes = inside(bounds, uint16_t(cell_planes));
         if (ref_planes < 0) continue;
         const uint32_t prim = tree_.ref(r);
         const auto found = std::find(w.ahead.begin(), w.ahead.end(), prim);
@@ -852,10 +869,10 @@ bool FrustumCaster::gather_ahead(const Job& job, const std::array<Ray, 4>& rays,
         // Only a plane the bounds straddle can have the element wholly behind it.
         bool out = false;
         for (size_t k = 0; k < plane_count && !out; ++k) {
-          out = (ref_planes & (1 << k)) && scene_.below_plane(prim, view_.eye, planes[k]);
+          out = (ref_planes & (1 << k)) && scene_.below_plane(prim, origins[k], planes[k]);
         }
         if (out) continue;
-        if (w.ahead.size() == kAheadLimit) return false;
+        if (w.ahead.size() == limit) return false;
         w.ahead.push_back(prim);
         w.ahead_refs.emplace_back(r, bounds);
       }
@@ -868,9 +885,9 @@ bool FrustumCaster::gather_ahead(const Job& job, const std::array<Ray, 4>& rays,
     const int lower_planes = inside(lower, top.planes), upper_planes = inside(upper, top.planes);
     // Nearer child on top of the stack: a crowded frustum meets its limit sooner.
     const bool upper_near = view_.eye[a] >= node.split;
-    if (!upper_near && upper_planes >= 0) w.nodes.push_back({int32_t(node.child), uint8_t(upper_planes), upper});
-    if (lower_planes >= 0) w.nodes.push_back({top.node + 1, uint8_t(lower_planes), lower});
-    if (upper_near && upper_planes >= 0) w.nodes.push_back({int32_t(node.child), uint8_t(upper_planes), upper});
+    if (!upper_near && upper_planes >= 0) w.nodes.push_back({int32_t(node.child), uint16_t(upper_planes), upper});
+    if (lower_planes >= 0) w.nodes.push_back({top.node + 1, uint16_t(lower_planes), lower});
+    if (upper_near && upper_planes >= 0) w.nodes.push_back({int32_t(node.child), uint16_t(upper_planes), upper});
   }
   for (int32_t c : w.ahead_cells) {
     if (marks_->mark(c)) ++w.counters.cells_touched;
@@ -1164,6 +1181,52 @@ bool FrustumCaster::fill_plane(const Job& job, const Incidence* list, uint32_t n
     if (w.occluders.size() > kMaxFillOccluders) return false;
   }
   fill_from_plane(job, tree_.ref(list[candidate].ref), normal, w);
+  ++w.counters.frustum_fills;
+  return true;
+}
+
+// The §4 fill across cells, for a triangle of the list whose plane the corner rays reach
+// beyond this cell (a floor seen across many cells). When they hit its interior anywhere along
+// the rays, every ray of the frustum hits it (fill_plane's argument without the cell). What
+// could come nearer is an element of this cell nearer than the farthest corner hit, or one
+// ahead of this cell in front of the triangle's plane (gather_ahead with that plane; the
+// cells before this one held nothing for the open pixels). With at most kMaxFillOccluders of
+// them, every pixel takes its distance from the plane and tests those.
+bool FrustumCaster::fill_plane_ahead(const Job& job, const Incidence* list, uint32_t n,
+                                     const std::array<Ray, 4>& rays, const std::array<double, 4>& tmins, Worker& w) {
+  const int nx = job.x1 - job.x0 + 1, ny = job.y1 - job.y0 + 1;
+  if (nx * ny < kPlaneFillMinPixels) return false;
+  uint32_t candidate = n, tried = 0;
+  double max_t = 0.0;
+  Vec3 normal;
+  for (uint32_t j = 0; j < n && candidate == n && tried < kPlaneFillCandidates; ++j) {
+    const Incidence& e = list[j];
+    if (e.x0 > job.x0 || e.x1 < job.x1 || e.y0 > job.y0 || e.y1 < job.y1) continue;
+    const PrimRef& ref = scene_.prims[tree_.ref(e.ref)];
+    if (ref.kind != PrimKind::Triangle) continue;
+    ++tried;
+    if (corners_on_triangle(scene_.triangles[ref.index], rays, tmins, nullptr, normal, max_t, w)) candidate = j;
+  }
+  if (candidate == n) return false;
+  const uint32_t element = tree_.ref(list[candidate].ref);
+  // The limit leaves room for the triangle itself, which lies on its own plane.
+  if (!gather_ahead(job, rays, &scene_.triangles[scene_.prims[element].index], kMaxFillOccluders + 1, w)) {
+    return false;
+  }
+  w.occluders.clear();
+  for (uint32_t prim : w.ahead) {
+    if (prim != element) w.occluders.push_back(prim);
+  }
+  for (uint32_t j = 0; j < n; ++j) {
+    const Incidence& e = list[j];
+    if (double(e.distance) > max_t) break;  // sorted nearest first
+    const uint32_t prim = tree_.ref(e.ref);
+    if (prim == element || e.x1 < job.x0 || e.x0 > job.x1 || e.y1 < job.y0 || e.y0 > job.y1) continue;
+    if (std::find(w.occluders.begin(), w.occluders.end(), prim) != w.occluders.end()) continue;
+    w.occluders.push_back(prim);
+  }
+  if (w.occluders.size() > kMaxFillOccluders) return false;
+  fill_from_plane(job, element, normal, w);
   ++w.counters.frustum_fills;
   return true;
 }

@@ -11,17 +11,22 @@
 // - four corner rays hitting the same nearest element fill the frustum (§4) — here checked per
 //   pixel against that element and the few elements that could be nearer, so it stays exact;
 //   for a triangle (a floor, a wall) whose interior holds all four corner hits inside the cell,
-//   every pixel takes its distance from the plane without a ray of its own (fill_plane);
-// - per frame, each cell's elements carry a screen rectangle, a lower bound on their distance
-//   and the cone of eye directions that can reach them (exact for spheres), so a pixel tests
+//   every pixel takes its distance from the plane without a ray of its own (fill_plane); when
+//   the hits lie beyond the cell, the few elements ahead in front of the triangle's plane are
+//   found in the tree and tested as occluders (fill_plane_ahead);
+// - per frame, each cell's elements carry a screen rectangle (of the part beyond the near
+//   plane, so a floor reaching behind the eye covers only where it is seen), a lower bound on
+//   their distance and the cone of eye directions that can reach them (exact for spheres), so a pixel tests
 //   only elements it can hit, nearest first, and stops at the first bound beyond its hit;
 // - look-ahead (beyond the paper): a frustum one or two levels above the leaf that cannot
 //   advance asks the whole tree which elements could lie in it beyond its cell (node bounds,
 //   then each element's own shape against the frustum's planes); when at most four do, its
-//   pixels test only those (or, when the corners all hit one of them, a triangle, take their
-//   distance from its plane as fill_plane does), and when none does, it is background. This
-//   replaces the strips of lone walks along the images of cell boundaries over floors and
-//   open sky (gather_ahead);
+//   pixels test only those, listed like a cell's elements (or, when the corners all hit one of
+//   them, a triangle, take their distance from its plane as fill_plane does), and when none
+//   does, it is background. This replaces the strips of lone walks along the images of cell
+//   boundaries over floors and open sky (gather_ahead);
+// - lone pixel walks reuse the arrival cell of the pixel walked before them when a box test
+//   confirms it (NextCells), instead of descending from the rope;
 // - near plane; eye outside the root (§4 special case);
 // - the job queue of §5.2: levels of a breadth-first subdivision, each level interleaved across
 //   the screen, interruptible between jobs by a time or sample budget, resumable next frame.
@@ -113,7 +118,10 @@ class FrustumCaster {
   void process(Job job, Worker& w);
   Side classify(const Vec3& normal, const Aabb& box) const;
   bool in_front(const Aabb& box) const;
-  bool gather_ahead(const Job& job, const std::array<Ray, 4>& rays, Worker& w) const;
+  bool gather_ahead(const Job& job, const std::array<Ray, 4>& rays, const Triangle* before, size_t limit,
+                    Worker& w) const;
+  bool fill_plane_ahead(const Job& job, const Incidence* list, uint32_t n, const std::array<Ray, 4>& rays,
+                        const std::array<double, 4>& tmins, Worker& w);
   void resolve_against_ahead(const Job& job, const std::array<Ray, 4>& rays, const std::array<double, 4>& tmins,
                              Worker& w);
   bool classify_planes(int x0, int x1, int y0, int y1, const Aabb& box, uint8_t planes, uint8_t& straddle) const;
