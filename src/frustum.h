@@ -104,6 +104,7 @@ class FrustumCaster {
   void set_gate(CellGate* gate) {
     gate_ = gate;
     cone_terms_.clear();  // a paged scene changes under a frame
+    sphere_terms_.clear();
   }
   void tree_changed();
   size_t parked() const;
@@ -175,10 +176,12 @@ class FrustumCaster {
   bool shadows_ = true;
   double slack_scale_ = 1.0;
 
-  // Every cone's terms that depend only on the eye, for this frame (in-memory scenes of at
-  // most kMaxConeTerms cones; a paged scene changes under the frame). offer() uses them.
-  static constexpr size_t kMaxConeTerms = size_t{1} << 16;
+  // Every cone's and sphere's terms that depend only on the eye, for this frame (in-memory
+  // scenes of at most kMaxEyeTerms of each; a paged scene changes under the frame). offer()
+  // uses them.
+  static constexpr size_t kMaxEyeTerms = size_t{1} << 16;
   std::vector<ConeFromOrigin> cone_terms_;
+  std::vector<SphereFromOrigin> sphere_terms_;
   void offer(uint32_t prim, const Ray& ray, double tmin, double tmax, RayHit& best, Counters& counters) const;
   std::vector<Vec3> column_normal_;  // plane of pixel column x, oriented towards larger x
   std::vector<Vec3> row_normal_;     // plane of pixel row y, oriented towards larger y

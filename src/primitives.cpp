@@ -221,6 +221,36 @@ bool intersect_sphere(const Sphere& s, const Ray& ray, double tmin, double tmax,
   return false;
 }
 
+SphereFromOrigin sphere_from_origin(const Sphere& s, const Vec3& origin) {
+  SphereFromOrigin k;
+  k.oc = origin - s.center;
+  k.reach = s.radius * (1.0 + 1e-9);
+  k.r2 = s.radius * s.radius;
+  k.c = glm::dot(k.oc, k.oc) - k.r2;
+  return k;
+}
+
+// intersect_sphere with the origin's terms given (see there for the reasoning).
+bool intersect_sphere(const SphereFromOrigin& k, const Vec3& d, double tmin, double tmax, double& t) {
+  const double a = glm::dot(d, d);
+  const double h = glm::dot(k.oc, d);
+  const double tc = -h / a, reach = k.reach / std::min(a, 1.0);
+  if (tc - reach > tmax || tc + reach < tmin) return false;
+  const Vec3 perp = k.oc - (h / a) * d;
+  const double disc = a * (k.r2 - glm::length2(perp));
+  double r0, r1;
+  if (solve_half_b(a, h, k.c, disc, r0, r1) == 0) return false;
+  if (r0 >= tmin && r0 <= tmax) {
+    t = r0;
+    return true;
+  }
+  if (r1 >= tmin && r1 <= tmax) {
+    t = r1;
+    return true;
+  }
+  return false;
+}
+
 bool intersect_box(const Box& b, const Ray& ray, double tmin, double tmax, double& t) {
   double t0, t1;
   if (!ray_box_interval(ray, b.bounds, t0, t1)) return false;

@@ -68,6 +68,16 @@ struct ConeFromOrigin {
 };
 ConeFromOrigin cone_from_origin(const Cone& c, const Vec3& origin);
 bool intersect_cone(const ConeFromOrigin& k, const Vec3& dir, double tmin, double tmax, double& t);
+// The same split for spheres: the terms of intersect_sphere that depend only on the sphere and
+// the origin, then the rest per direction, in the same operations (bit-identical results).
+struct SphereFromOrigin {
+  Vec3 oc;              // origin - centre
+  double reach = 0.0;   // radius with its margin (intersect_sphere's early rejection)
+  double r2 = 0.0;
+  double c = 0.0;       // |oc|² - r²
+};
+SphereFromOrigin sphere_from_origin(const Sphere& s, const Vec3& origin);
+bool intersect_sphere(const SphereFromOrigin& k, const Vec3& dir, double tmin, double tmax, double& t);
 bool intersect_quadric(const Quadric& q, const Ray& ray, double tmin, double tmax, double& t);
 
 // Tight (or slightly conservative) axis-aligned bounds.

@@ -426,6 +426,51 @@ TEST(SphereIntersect, AxisParallelRays) {
 // ---------------------------------------------------------------------------------------
 // Boxes
 
+// Frustum casting tests primary rays with terms computed once per frame from the eye
+// (sphere_from_origin, cone_from_origin): the split tests must answer bit for bit like the
+// whole ones, for grazing, axis-parallel and far-from-origin rays alike.
+TEST(EyeTerms, SplitTestsMatchTheWholeOnesBitForBit) {
+  std::mt19937_64 rng(404);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  size_t sphere_hits = 0, cone_hits = 0;
+  for (int s = 0; s < 4000; ++s) {
+    const Vec3 offset = s % 4 == 3 ? Vec3(1e6, -1e6, 1e6) : Vec3(0.0);
+    const Sphere sphere{offset + Vec3(u(rng), u(rng), u(rng)), 0.05 + std::abs(u(rng))};
+    const Cone cone{offset + Vec3(u(rng), u(rng), u(rng)), 0.3 * std::abs(u(rng)),
+                    offset + Vec3(u(rng), u(rng), u(rng)), s % 3 == 0 ? 0.0 : 0.3 * std::abs(u(rng))};
+    const Vec3 origin = offset + 3.0 * Vec3(u(rng), u(rng), u(rng));
+    const SphereFromOrigin ks = sphere_from_origin(sphere, origin);
+    const ConeFromOrigin kc = cone_from_origin(cone, origin);
+    for (int r = 0; r < 16; ++r) {
+      Vec3 target = r % 2 ? sphere.center + sphere.radius * glm::normalize(Vec3(u(rng), u(rng), u(rng)))  // grazing
+                          : cone.base + 0.5 * (cone.apex - cone.base) + 0.2 * Vec3(u(rng), u(rng), u(rng));
+      Vec3 d = target - origin;
+      if (r % 5 == 4) d = Vec3(0.0, 0.0, d.z < 0 ? -1.0 : 1.0);  // axis-parallel
+      const Ray ray(origin, d);
+      const double tmin = r % 3 == 0 ? 0.0 : 0.5 * std::abs(u(rng));
+      const double tmax = r % 4 == 0 ? kInfinity : 1.0 + 4.0 * std::abs(u(rng));
+      double t_whole = -1.0, t_split = -1.0;
+      const bool hit_whole = intersect_sphere(sphere, ray, tmin, tmax, t_whole);
+      const bool hit_split = intersect_sphere(ks, ray.dir, tmin, tmax, t_split);
+      ASSERT_EQ(hit_whole, hit_split) << "sphere " << s << " ray " << r;
+      if (hit_whole) {
+        ASSERT_EQ(t_whole, t_split) << "sphere " << s << " ray " << r;
+        ++sphere_hits;
+      }
+      t_whole = t_split = -1.0;
+      const bool cone_whole = intersect_cone(cone, ray, tmin, tmax, t_whole);
+      const bool cone_split = intersect_cone(kc, ray.dir, tmin, tmax, t_split);
+      ASSERT_EQ(cone_whole, cone_split) << "cone " << s << " ray " << r;
+      if (cone_whole) {
+        ASSERT_EQ(t_whole, t_split) << "cone " << s << " ray " << r;
+        ++cone_hits;
+      }
+    }
+  }
+  EXPECT_GT(sphere_hits, 10000u);
+  EXPECT_GT(cone_hits, 5000u);
+}
+
 TEST(BoxIntersect, EntryFromOutsideExitFromInside) {
   const Box b{Aabb(Vec3(-1, -2, -3), Vec3(1, 2, 3))};
   double t = -1.0;
