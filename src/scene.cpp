@@ -42,24 +42,6 @@ double Scene::distance_bound(uint32_t i, const Vec3& p) const {
   }
 }
 
-bool Scene::bounding_sphere(uint32_t i, Vec3& centre, double& radius) const {
-  const PrimRef& r = prims[i];
-  if (r.kind == PrimKind::Sphere) {
-    centre = spheres[r.index].center;
-    radius = std::abs(spheres[r.index].radius);
-    return true;
-  }
-  if (r.kind == PrimKind::Cone) {
-    const Cone& c = cones[r.index];
-    centre = 0.5 * (c.base + c.apex);
-    const double half = 0.5 * glm::length(c.apex - c.base);
-    const double rmax = std::max(std::abs(c.base_radius), std::abs(c.apex_radius));
-    radius = std::sqrt(half * half + rmax * rmax);
-    return true;
-  }
-  return false;
-}
-
 bool Scene::below_plane(uint32_t i, const Vec3& origin, const Vec3& normal) const {
   const PrimRef& r = prims[i];
   // The largest signed distance, and the size of what it is computed from: the margin covers

@@ -75,9 +75,6 @@ struct Scene {
   // A lower bound on the distance from p to primitive i's surface beyond what its bounds give
   // (spheres and cones; 0 for the others). Never more than the true distance.
   double distance_bound(uint32_t i, const Vec3& p) const;
-  // A sphere enclosing primitive i's surface, when one tighter than its bounds' is cheap to
-  // give (spheres: the sphere itself; cones: around the axis midpoint). False for the others.
-  bool bounding_sphere(uint32_t i, Vec3& centre, double& radius) const;
   // Whether primitive i lies wholly on the negative side of the plane through `origin` with
   // `normal` (dot(normal, q - origin) < 0 at every surface point q, by a relative margin).
   // Exact for triangles, spheres and cones (each end circle's farthest point); boxes and
