@@ -219,9 +219,13 @@ void FrustumCaster::begin(const View& view, SampleBuffer& buffer, CellMarks& mar
     row_normal_[static_cast<size_t>(y)] = n;
   }
   for (auto& w : workers_) {
-    w->slot_stamp.assign(view.pixels(), 0u);
-    w->slot.resize(view.pixels());
-    w->stamp = 0;
+    // The stamps run on across frames (a 1 MB clear per worker per frame otherwise); a new
+    // image size starts them again.
+    if (w->slot_stamp.size() != view.pixels()) {
+      w->slot_stamp.assign(view.pixels(), 0u);
+      w->slot.resize(view.pixels());
+      w->stamp = 0;
+    }
     for (auto& c : w->children) c.clear();
     w->arena_out.clear();
     w->remaining.clear();
