@@ -1211,16 +1211,19 @@ bool FrustumCaster::fill_plane(const Job& job, const Incidence* list, uint32_t n
     if (corners_on_triangle(scene_.triangles[ref.index], rays, tmins, cell, normal, max_t, w)) candidate = j;
   }
   if (candidate == n) return false;
+  const uint32_t element = tree_.ref(list[candidate].ref);
   w.occluders.clear();
   for (uint32_t j = 0; j < n; ++j) {
     if (j == candidate) continue;
     const Incidence& e = list[j];
     if (double(e.distance) > max_t) break;  // sorted nearest first
     if (e.x1 < job.x0 || e.x0 > job.x1 || e.y1 < job.y0 || e.y0 > job.y1) continue;
-    w.occluders.push_back(tree_.ref(e.ref));
+    const uint32_t prim = tree_.ref(e.ref);
+    if (coplanar(prim, element, normal)) continue;
+    w.occluders.push_back(prim);
     if (w.occluders.size() > kMaxFillOccluders) return false;
   }
-  fill_from_plane(job, tree_.ref(list[candidate].ref), normal, w);
+  fill_from_plane(job, element, normal, w);
   ++w.counters.frustum_fills;
   return true;
 }
@@ -1255,19 +1258,36 @@ bool FrustumCaster::fill_plane_ahead(const Job& job, const Incidence* list, uint
   }
   w.occluders.clear();
   for (uint32_t prim : w.ahead) {
-    if (prim != element) w.occluders.push_back(prim);
+    if (prim != element && !coplanar(prim, element, normal)) w.occluders.push_back(prim);
   }
   for (uint32_t j = 0; j < n; ++j) {
     const Incidence& e = list[j];
     if (double(e.distance) > max_t) break;  // sorted nearest first
     const uint32_t prim = tree_.ref(e.ref);
     if (prim == element || e.x1 < job.x0 || e.x0 > job.x1 || e.y1 < job.y0 || e.y0 > job.y1) continue;
+    if (coplanar(prim, element, normal)) continue;
     if (std::find(w.occluders.begin(), w.occluders.end(), prim) != w.occluders.end()) continue;
     w.occluders.push_back(prim);
   }
   if (w.occluders.size() > kMaxFillOccluders) return false;
   fill_from_plane(job, element, normal, w);
   ++w.counters.frustum_fills;
+  return true;
+}
+
+// Whether `prim` is a triangle in the plane of triangle `element` (normal `normal`): the other
+// half of a quad, a neighbouring floor tile. It cannot come before the plane (a hit on it is at
+// the plane's distance, a tie), so a plane fill need not test it per pixel.
+bool FrustumCaster::coplanar(uint32_t prim, uint32_t element, const Vec3& normal) const {
+  const PrimRef& ref = scene_.prims[prim];
+  if (ref.kind != PrimKind::Triangle) return false;
+  const Triangle& other = scene_.triangles[ref.index];
+  const Vec3& origin = scene_.triangles[scene_.prims[element].index].v0;
+  const double n_length = glm::length(normal);
+  for (const Vec3& v : {other.v0, other.v1, other.v2}) {
+    const Vec3 d = v - origin;
+    if (!(std::abs(glm::dot(normal, d)) <= 1e-12 * n_length * (glm::length(d) + glm::length(origin)))) return false;
+  }
   return true;
 }
 

@@ -155,6 +155,7 @@ class FrustumCaster {
   bool corners_on_triangle(const Triangle& tri, const std::array<Ray, 4>& rays, const std::array<double, 4>& tmins,
                            const Aabb* cell, Vec3& normal, double& max_t, Worker& w) const;
   void fill_from_plane(const Job& job, uint32_t element, const Vec3& normal, Worker& w);
+  bool coplanar(uint32_t prim, uint32_t element, const Vec3& normal) const;
   void split(const Job& job, const Incidence* list, uint32_t n, Worker& w);
   bool claim(const Job& job, int x, int y, size_t i) const;
   void confirm(const Job& job, int x, int y, uint32_t prim, double t, const Ray& ray, Worker& w);
