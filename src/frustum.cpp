@@ -440,6 +440,12 @@ bool FrustumCaster::run(const FrameBudget& budget, Counters& counters) {
     if (current_.empty()) finish_level();
     std::vector<Job> level;
     level.swap(current_);
+    // A frame that runs to the end has no use for the interleaved order (it spreads an
+    // interrupted level over the screen, and scatters siblings across the workers' runs): the
+    // level goes in Z order. Interleaved A/B at 513², min ms: rings 27.0 -> 22.3, tree
+    // 14.8 -> 12.4, shells 87.7 -> 83.4. (Sorting each quadrant's part of an interleaved level
+    // gained nothing: the gain is siblings in a row.)
+    if (budget.ms == 0.0 && budget.samples == 0) sort_by_place(level.begin(), level.end());
     arena_->arena.execute([&] {
       tbb::parallel_for(tbb::blocked_range<size_t>(0, level.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
         Worker& w = current_worker();
@@ -476,6 +482,19 @@ void FrustumCaster::finish_level() {
       c.clear();
     }
   }
+}
+
+// Jobs in Z order of their corner: sibling and neighbouring frusta one after the other, so a
+// worker's run of the level reads the same cells and lists while they are in cache.
+void FrustumCaster::sort_by_place(std::vector<Job>::iterator first, std::vector<Job>::iterator last) {
+  auto key = [](const Job& j) {
+    uint64_t k = 0;
+    for (int b = 0; b < 16; ++b) {
+      k |= (uint64_t((uint32_t(j.x0) >> b) & 1u) << (2 * b)) | (uint64_t((uint32_t(j.y0) >> b) & 1u) << (2 * b + 1));
+    }
+    return k;
+  };
+  std::sort(first, last, [&](const Job& a, const Job& b) { return key(a) < key(b); });
 }
 
 FrustumCaster::Side FrustumCaster::classify(const Vec3& n, const Aabb& box) const {

@@ -29,7 +29,8 @@
 //   confirms it (NextCells), instead of descending from the rope;
 // - near plane; eye outside the root (§4 special case);
 // - the job queue of §5.2: levels of a breadth-first subdivision, each level interleaved across
-//   the screen, interruptible between jobs by a time or sample budget, resumable next frame.
+//   the screen, interruptible between jobs by a time or sample budget, resumable next frame
+//   (a frame with no budget takes each level in Z order instead: siblings in a row, in cache).
 //
 // Exactness argument (why frusta may advance): a frustum moves from cell A to cell B only when
 // all four corner rays leave A through the same face into B; the frustum's cross-section with
@@ -160,6 +161,7 @@ class FrustumCaster {
   bool claim(const Job& job, int x, int y, size_t i) const;
   void confirm(const Job& job, int x, int y, uint32_t prim, double t, const Ray& ray, Worker& w);
   void finish_level();
+  static void sort_by_place(std::vector<Job>::iterator first, std::vector<Job>::iterator last);
   Worker& current_worker();
   void plan_anchors(int width, int height);
   template <typename OutOfBudget>
