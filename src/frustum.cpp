@@ -39,9 +39,15 @@ constexpr size_t kPixelMajorWork = 4096;
 // Levels of subdivision done before the queue starts (4^4 = 256 tiles): measured faster than
 // one root frustum on 1 and 2 threads (large frusta pay corner tests and fill attempts).
 constexpr int kPresplitLevels = 4;
-// Quadrant order of children on the next level: diagonal quadrants first, so that an
-// interrupted level leaves samples spread over the screen (interleaved order, §5.2).
+// Quadrant order of the reconstruction anchors: diagonal quadrants first, so that an image
+// stopped early has them spread over the screen (interleaved order, §5.2).
 constexpr std::array<int, 4> kQuadrantOrder = {0, 3, 1, 2};
+// A budgeted frame runs each level in runs of this many jobs in Z order, the runs in
+// bit-reversed order (order_level). Interleaved A/B at 513² on frames that ran to the end,
+// min ms, against the quadrant-interleaved order: rings 27.4 -> 24.5, tree 14.7 -> 13.4,
+// shells 89.3 -> 85.1 (whole levels in Z order: 22.6, 12.4, 83.0; runs of 4: 25.8, 13.6,
+// 87.2).
+constexpr size_t kOrderRun = 16;
 
 // True when the four corner rays agree (same entry/exit face, same next cell).
 template <typename T>
@@ -139,7 +145,7 @@ struct AheadNode {
 }  // namespace
 
 struct FrustumCaster::Worker {
-  std::array<std::vector<Job>, 4> children;  // next level, by quadrant
+  std::vector<Job> children;                 // next level
   std::vector<Incidence> arena_out;          // incidence lists of those children
   std::vector<Job> remaining;                // jobs skipped because the budget ran out
   std::vector<Job> parked;                   // jobs that reached a missing cell (paging)
@@ -226,7 +232,7 @@ void FrustumCaster::begin(const View& view, SampleBuffer& buffer, CellMarks& mar
       w->slot.resize(view.pixels());
       w->stamp = 0;
     }
-    for (auto& c : w->children) c.clear();
+    w->children.clear();
     w->arena_out.clear();
     w->remaining.clear();
     w->parked.clear();
@@ -247,12 +253,13 @@ void FrustumCaster::begin(const View& view, SampleBuffer& buffer, CellMarks& mar
   // a fresh child collects its own elements), so that every worker has jobs from the start
   // instead of waiting for one root frustum to fan out.
   current_.push_back(root);
+  level_ordered_ = false;
   for (int level = 0; level < kPresplitLevels; ++level) {
-    std::array<std::vector<Job>, 4> buckets;  // by quadrant, for the interleaved order
+    std::vector<Job> next;  // run() puts each level in its order
     for (const Job& job : current_) {
       const bool split_x = job.x1 - job.x0 >= 2, split_y = job.y1 - job.y0 >= 2;
       if (!split_x && !split_y) {
-        buckets[0].push_back(job);
+        next.push_back(job);
         continue;
       }
       const int xm = split_x ? (job.x0 + job.x1) / 2 : job.x1, ym = split_y ? (job.y0 + job.y1) / 2 : job.y1;
@@ -264,11 +271,10 @@ void FrustumCaster::begin(const View& view, SampleBuffer& buffer, CellMarks& mar
         child.x1 = right || !split_x ? job.x1 : xm;
         child.y0 = lower ? ym : job.y0;
         child.y1 = lower || !split_y ? job.y1 : ym;
-        buckets[size_t(q)].push_back(child);
+        next.push_back(child);
       }
     }
-    current_.clear();
-    for (int q : kQuadrantOrder) current_.insert(current_.end(), buckets[size_t(q)].begin(), buckets[size_t(q)].end());
+    current_.swap(next);
   }
 }
 
@@ -354,9 +360,7 @@ FrustumCaster::Worker& FrustumCaster::current_worker() {
 bool FrustumCaster::runnable() const {
   if (!current_.empty()) return true;
   for (const auto& w : workers_) {
-    for (const auto& c : w->children) {
-      if (!c.empty()) return true;
-    }
+    if (!w->children.empty()) return true;
   }
   return false;
 }
@@ -413,6 +417,7 @@ void FrustumCaster::resume_parked() {
     }
     w->parked.clear();
   }
+  level_ordered_ = false;
 }
 
 bool FrustumCaster::run(const FrameBudget& budget, Counters& counters) {
@@ -438,14 +443,11 @@ bool FrustumCaster::run(const FrameBudget& budget, Counters& counters) {
   bool interrupted = false;
   while (runnable() && !interrupted) {
     if (current_.empty()) finish_level();
+    // A level is put in order once: the jobs an interrupted run leaves keep theirs.
+    if (!level_ordered_) order_level(current_, budget.ms > 0.0 || budget.samples > 0);
+    level_ordered_ = true;
     std::vector<Job> level;
     level.swap(current_);
-    // A frame that runs to the end has no use for the interleaved order (it spreads an
-    // interrupted level over the screen, and scatters siblings across the workers' runs): the
-    // level goes in Z order. Interleaved A/B at 513², min ms: rings 27.0 -> 22.3, tree
-    // 14.8 -> 12.4, shells 87.7 -> 83.4. (Sorting each quadrant's part of an interleaved level
-    // gained nothing: the gain is siblings in a row.)
-    if (budget.ms == 0.0 && budget.samples == 0) sort_by_place(level.begin(), level.end());
     arena_->arena.execute([&] {
       tbb::parallel_for(tbb::blocked_range<size_t>(0, level.size(), 1), [&](const tbb::blocked_range<size_t>& r) {
         Worker& w = current_worker();
@@ -470,31 +472,56 @@ bool FrustumCaster::run(const FrameBudget& budget, Counters& counters) {
 }
 
 void FrustumCaster::finish_level() {
+  level_ordered_ = false;
   arenas_in_.resize(workers_.size());
   for (size_t k = 0; k < workers_.size(); ++k) {
     arenas_in_[k].swap(workers_[k]->arena_out);
     workers_[k]->arena_out.clear();
   }
-  for (int q : kQuadrantOrder) {
-    for (auto& w : workers_) {
-      auto& c = w->children[static_cast<size_t>(q)];
-      current_.insert(current_.end(), c.begin(), c.end());
-      c.clear();
-    }
+  for (auto& w : workers_) {
+    current_.insert(current_.end(), w->children.begin(), w->children.end());
+    w->children.clear();
   }
 }
 
-// Jobs in Z order of their corner: sibling and neighbouring frusta one after the other, so a
-// worker's run of the level reads the same cells and lists while they are in cache.
-void FrustumCaster::sort_by_place(std::vector<Job>::iterator first, std::vector<Job>::iterator last) {
-  auto key = [](const Job& j) {
-    uint64_t k = 0;
-    for (int b = 0; b < 16; ++b) {
-      k |= (uint64_t((uint32_t(j.x0) >> b) & 1u) << (2 * b)) | (uint64_t((uint32_t(j.y0) >> b) & 1u) << (2 * b + 1));
-    }
-    return k;
+// The order a level's jobs run in: Z order of their corners, so that sibling and neighbouring
+// frusta run one after the other and find their cells and lists in cache (the order the
+// workers produced them scattered siblings: rings 27.0 -> 22.3 ms at 513², tree 14.8 -> 12.4,
+// shells 87.7 -> 83.4). A budgeted frame may stop within the level: there the Z order is cut
+// into runs of kOrderRun jobs taken in bit-reversed order, so that the runs done when it stops
+// are spread over the screen (§5.2's interleaving) and siblings still run together.
+void FrustumCaster::order_level(std::vector<Job>& level, bool budgeted) {
+  auto spread = [](uint32_t v) {  // the bits of v at the even positions of a 32-bit word
+    v &= 0xFFFFu;
+    v = (v | (v << 8)) & 0x00FF00FFu;
+    v = (v | (v << 4)) & 0x0F0F0F0Fu;
+    v = (v | (v << 2)) & 0x33333333u;
+    v = (v | (v << 1)) & 0x55555555u;
+    return v;
   };
-  std::sort(first, last, [&](const Job& a, const Job& b) { return key(a) < key(b); });
+  std::vector<std::pair<uint32_t, uint32_t>> keys(level.size());  // Z key, job
+  for (size_t i = 0; i < level.size(); ++i) {
+    keys[i] = {spread(uint32_t(level[i].x0)) | (spread(uint32_t(level[i].y0)) << 1), uint32_t(i)};
+  }
+  std::sort(keys.begin(), keys.end());
+  std::vector<Job> sorted;
+  sorted.reserve(level.size());
+  for (const auto& key : keys) sorted.push_back(level[key.second]);
+  level.swap(sorted);
+  if (!budgeted) return;
+  const size_t runs = (level.size() + kOrderRun - 1) / kOrderRun;
+  int bits = 0;
+  while ((size_t{1} << bits) < runs) ++bits;
+  std::vector<Job> ordered;
+  ordered.reserve(level.size());
+  for (size_t k = 0; k < (size_t{1} << bits); ++k) {
+    size_t run = 0;  // k with its bits reversed
+    for (int b = 0; b < bits; ++b) run |= ((k >> b) & 1u) << (bits - 1 - b);
+    if (run >= runs) continue;
+    const size_t end = std::min(level.size(), (run + 1) * kOrderRun);
+    ordered.insert(ordered.end(), level.begin() + std::ptrdiff_t(run * kOrderRun), level.begin() + std::ptrdiff_t(end));
+  }
+  level.swap(ordered);
 }
 
 FrustumCaster::Side FrustumCaster::classify(const Vec3& n, const Aabb& box) const {
@@ -1428,22 +1455,22 @@ bool FrustumCaster::try_fill(const Job& job, const Incidence* list, uint32_t n, 
 void FrustumCaster::split(const Job& job, const Incidence* list, uint32_t n, Worker& w) {
   const bool split_x = job.x1 - job.x0 >= 2, split_y = job.y1 - job.y0 >= 2;
   const int xm = (job.x0 + job.x1) / 2, ym = (job.y0 + job.y1) / 2;
-  struct Rect { int x0, y0, x1, y1, quadrant; };
+  struct Rect { int x0, y0, x1, y1; };
   std::array<Rect, 4> rects;
   int count = 0;
   if (split_x && split_y) {
-    rects[0] = {job.x0, job.y0, xm, ym, 0};
-    rects[1] = {xm, job.y0, job.x1, ym, 1};
-    rects[2] = {job.x0, ym, xm, job.y1, 2};
-    rects[3] = {xm, ym, job.x1, job.y1, 3};
+    rects[0] = {job.x0, job.y0, xm, ym};
+    rects[1] = {xm, job.y0, job.x1, ym};
+    rects[2] = {job.x0, ym, xm, job.y1};
+    rects[3] = {xm, ym, job.x1, job.y1};
     count = 4;
   } else if (split_x) {
-    rects[0] = {job.x0, job.y0, xm, job.y1, 0};
-    rects[1] = {xm, job.y0, job.x1, job.y1, 3};
+    rects[0] = {job.x0, job.y0, xm, job.y1};
+    rects[1] = {xm, job.y0, job.x1, job.y1};
     count = 2;
   } else {
-    rects[0] = {job.x0, job.y0, job.x1, ym, 0};
-    rects[1] = {job.x0, ym, job.x1, job.y1, 3};
+    rects[0] = {job.x0, job.y0, job.x1, ym};
+    rects[1] = {job.x0, ym, job.x1, job.y1};
     count = 2;
   }
   const uint16_t arena_index = w.index;
@@ -1491,7 +1518,7 @@ void FrustumCaster::split(const Job& job, const Incidence* list, uint32_t n, Wor
       child.inc_count = static_cast<uint32_t>(w.arena_out.size()) - child.inc_begin;
       child.state = child.inc_count > 0 ? kList : kEmpty;
     }
-    w.children[static_cast<size_t>(r.quadrant)].push_back(child);
+    w.children.push_back(child);
   }
 }
 

@@ -30,7 +30,8 @@
 // - near plane; eye outside the root (§4 special case);
 // - the job queue of §5.2: levels of a breadth-first subdivision, each level interleaved across
 //   the screen, interruptible between jobs by a time or sample budget, resumable next frame
-//   (a frame with no budget takes each level in Z order instead: siblings in a row, in cache).
+//   (in Z order, siblings in a row while their cells are in cache; a budgeted frame takes
+//   the Z order in runs spread over the screen, see order_level).
 //
 // Exactness argument (why frusta may advance): a frustum moves from cell A to cell B only when
 // all four corner rays leave A through the same face into B; the frustum's cross-section with
@@ -161,7 +162,7 @@ class FrustumCaster {
   bool claim(const Job& job, int x, int y, size_t i) const;
   void confirm(const Job& job, int x, int y, uint32_t prim, double t, const Ray& ray, Worker& w);
   void finish_level();
-  static void sort_by_place(std::vector<Job>::iterator first, std::vector<Job>::iterator last);
+  static void order_level(std::vector<Job>& level, bool budgeted);
   Worker& current_worker();
   void plan_anchors(int width, int height);
   template <typename OutOfBudget>
@@ -211,6 +212,7 @@ class FrustumCaster {
   size_t anchors_next_ = 0;        // first anchor of this image not yet walked
 
   std::vector<Job> current_;                      // jobs of the current level not yet run
+  bool level_ordered_ = false;                    // current_ is in order_level's order
   std::vector<std::vector<Incidence>> arenas_in_;  // incidence lists the current level reads
   std::vector<std::unique_ptr<Worker>> workers_;
   std::atomic<uint64_t> samples_done_{0};  // samples confirmed in this run() (sample budgets only)
