@@ -43,10 +43,10 @@ constexpr int kPresplitLevels = 4;
 // stopped early has them spread over the screen (interleaved order, §5.2).
 constexpr std::array<int, 4> kQuadrantOrder = {0, 3, 1, 2};
 // A budgeted frame runs each level in runs of this many jobs in Z order, the runs in
-// bit-reversed order (order_level). Interleaved A/B at 513² on frames that ran to the end,
-// min ms, against the quadrant-interleaved order: rings 27.4 -> 24.5, tree 14.7 -> 13.4,
-// shells 89.3 -> 85.1 (whole levels in Z order: 22.6, 12.4, 83.0; runs of 4: 25.8, 13.6,
-// 87.2).
+// bit-reversed order (order_level). Interleaved A/B at 513² on frames given an unreachable
+// budget (so they ran to the end in this order), min ms, against the quadrant-interleaved
+// order before it: rings 27.4 -> 24.5, tree 14.7 -> 13.4, shells 89.3 -> 85.1 (whole levels
+// in Z order: 22.6, 12.4, 83.0; runs of 4: 25.8, 13.6, 87.2).
 constexpr size_t kOrderRun = 16;
 
 // True when the four corner rays agree (same entry/exit face, same next cell).
