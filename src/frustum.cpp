@@ -136,6 +136,14 @@ struct NextCells {
   }
 };
 
+// An element gather_ahead found: one of its references and the union of its bounds in the
+// cells ahead (what its screen rectangle is made from).
+struct AheadElement {
+  uint32_t prim;
+  uint32_t ref;
+  Aabb bounds;
+};
+
 // A node on gather_ahead's stack: its region and the frustum planes it may still straddle.
 struct AheadNode {
   int32_t node;
@@ -160,8 +168,7 @@ struct FrustumCaster::Worker {
   std::vector<Pixel> open;
   NextCells next_cells;                         // lone pixel walks' arrivals
   std::vector<AheadNode> nodes;                 // gather_ahead's descent stack,
-  std::vector<uint32_t> ahead;                  // the elements it found,
-  std::vector<std::pair<uint32_t, Aabb>> ahead_refs;  // a reference of each and its bounds there
+  std::vector<AheadElement> ahead;              // the elements it found
   std::vector<int32_t> ahead_cells;             // and the cells it read them from
   Counters counters;
   uint16_t index = 0;  // which arenas_in_ slot its arena_out becomes
@@ -902,7 +909,6 @@ bool FrustumCaster::gather_ahead(const Job& job, const std::array<Ray, 4>& rays,
     return mask;
   };
   w.ahead.clear();
-  w.ahead_refs.clear();
   w.ahead_cells.clear();
   w.nodes.clear();
   w.nodes.push_back({0, all_planes, tree_.bounds()});
@@ -932,9 +938,10 @@ bool FrustumCaster::gather_ahead(const Job& job, const std::array<Ray, 4>& rays,
         const int ref_planes = inside(bounds, uint16_t(cell_planes));
         if (ref_planes < 0) continue;
         const uint32_t prim = tree_.ref(r);
-        const auto found = std::find(w.ahead.begin(), w.ahead.end(), prim);
+        const auto found = std::find_if(w.ahead.begin(), w.ahead.end(),
+                                        [&](const AheadElement& e) { return e.prim == prim; });
         if (found != w.ahead.end()) {
-          w.ahead_refs[size_t(found - w.ahead.begin())].second.extend(bounds);
+          found->bounds.extend(bounds);
           continue;
         }
         // Only a plane the bounds straddle can have the element wholly behind it.
@@ -944,8 +951,7 @@ bool FrustumCaster::gather_ahead(const Job& job, const std::array<Ray, 4>& rays,
         }
         if (out) continue;
         if (w.ahead.size() == limit) return false;
-        w.ahead.push_back(prim);
-        w.ahead_refs.emplace_back(r, bounds);
+        w.ahead.push_back({prim, r, bounds});
       }
       continue;
     }
@@ -978,7 +984,7 @@ void FrustumCaster::resolve_against_ahead(const Job& job, const std::array<Ray, 
     return;
   }
   w.scratch.clear();
-  for (const auto& [r, box] : w.ahead_refs) w.scratch.push_back(incidence(r, box));
+  for (const AheadElement& e : w.ahead) w.scratch.push_back(incidence(e.ref, e.bounds));
   std::sort(w.scratch.begin(), w.scratch.end(),
             [](const Incidence& a, const Incidence& b) { return a.distance < b.distance; });
   const Incidence* list = w.scratch.data();
@@ -1243,34 +1249,54 @@ bool FrustumCaster::corners_and_fill(const Job& job, const Incidence* list, uint
 // nothing, when no triangle qualifies or too many elements could occlude it.
 bool FrustumCaster::fill_plane(const Job& job, const Incidence* list, uint32_t n, const std::array<Ray, 4>& rays,
                                const std::array<double, 4>& tmins, const Aabb* cell, Worker& w) {
-  const int nx = job.x1 - job.x0 + 1, ny = job.y1 - job.y0 + 1;
-  if (nx * ny < kPlaneFillMinPixels) return false;
-  uint32_t candidate = n, tried = 0;
-  double max_t = 0.0;
   Vec3 normal;
-  for (uint32_t j = 0; j < n && candidate == n && tried < kPlaneFillCandidates; ++j) {
+  double max_t = 0.0;
+  const uint32_t candidate = plane_candidate(job, list, n, rays, tmins, cell, normal, max_t, w);
+  if (candidate == n) return false;
+  const uint32_t element = tree_.ref(list[candidate].ref);
+  w.occluders.clear();
+  if (!add_list_occluders(job, list, n, element, normal, max_t, w)) return false;
+  fill_from_plane(job, element, normal, w);
+  ++w.counters.frustum_fills;
+  return true;
+}
+
+// The index in `list` of a triangle covering the frustum whose interior the four corner rays
+// hit (inside `cell` when given), with its normal and the farthest corner hit; n when none of
+// the first kPlaneFillCandidates triangles does, or the frustum is too small to fill.
+uint32_t FrustumCaster::plane_candidate(const Job& job, const Incidence* list, uint32_t n,
+                                        const std::array<Ray, 4>& rays, const std::array<double, 4>& tmins,
+                                        const Aabb* cell, Vec3& normal, double& max_t, Worker& w) const {
+  const int nx = job.x1 - job.x0 + 1, ny = job.y1 - job.y0 + 1;
+  if (nx * ny < kPlaneFillMinPixels) return n;
+  uint32_t tried = 0;
+  for (uint32_t j = 0; j < n && tried < kPlaneFillCandidates; ++j) {
     const Incidence& e = list[j];
     if (e.x0 > job.x0 || e.x1 < job.x1 || e.y0 > job.y0 || e.y1 < job.y1) continue;
     const PrimRef& ref = scene_.prims[tree_.ref(e.ref)];
     if (ref.kind != PrimKind::Triangle) continue;
     ++tried;
-    if (corners_on_triangle(scene_.triangles[ref.index], rays, tmins, cell, normal, max_t, w)) candidate = j;
+    if (corners_on_triangle(scene_.triangles[ref.index], rays, tmins, cell, normal, max_t, w)) return j;
   }
-  if (candidate == n) return false;
-  const uint32_t element = tree_.ref(list[candidate].ref);
-  w.occluders.clear();
+  return n;
+}
+
+// Adds to w.occluders the elements of `list` that could come before the plane of `element`
+// inside the frustum: nearer than the farthest corner hit `max_t` (distance along rays to a
+// plane is convex over the section, so the corners bound it), overlapping the frustum, not in
+// the plane. False when that makes more than kMaxFillOccluders.
+bool FrustumCaster::add_list_occluders(const Job& job, const Incidence* list, uint32_t n, uint32_t element,
+                                       const Vec3& normal, double max_t, Worker& w) const {
   for (uint32_t j = 0; j < n; ++j) {
-    if (j == candidate) continue;
     const Incidence& e = list[j];
     if (double(e.distance) > max_t) break;  // sorted nearest first
-    if (e.x1 < job.x0 || e.x0 > job.x1 || e.y1 < job.y0 || e.y0 > job.y1) continue;
     const uint32_t prim = tree_.ref(e.ref);
+    if (prim == element || e.x1 < job.x0 || e.x0 > job.x1 || e.y1 < job.y0 || e.y0 > job.y1) continue;
     if (coplanar(prim, element, normal)) continue;
+    if (std::find(w.occluders.begin(), w.occluders.end(), prim) != w.occluders.end()) continue;
     w.occluders.push_back(prim);
     if (w.occluders.size() > kMaxFillOccluders) return false;
   }
-  fill_from_plane(job, element, normal, w);
-  ++w.counters.frustum_fills;
   return true;
 }
 
@@ -1283,19 +1309,9 @@ bool FrustumCaster::fill_plane(const Job& job, const Incidence* list, uint32_t n
 // them, every pixel takes its distance from the plane and tests those.
 bool FrustumCaster::fill_plane_ahead(const Job& job, const Incidence* list, uint32_t n,
                                      const std::array<Ray, 4>& rays, const std::array<double, 4>& tmins, Worker& w) {
-  const int nx = job.x1 - job.x0 + 1, ny = job.y1 - job.y0 + 1;
-  if (nx * ny < kPlaneFillMinPixels) return false;
-  uint32_t candidate = n, tried = 0;
-  double max_t = 0.0;
   Vec3 normal;
-  for (uint32_t j = 0; j < n && candidate == n && tried < kPlaneFillCandidates; ++j) {
-    const Incidence& e = list[j];
-    if (e.x0 > job.x0 || e.x1 < job.x1 || e.y0 > job.y0 || e.y1 < job.y1) continue;
-    const PrimRef& ref = scene_.prims[tree_.ref(e.ref)];
-    if (ref.kind != PrimKind::Triangle) continue;
-    ++tried;
-    if (corners_on_triangle(scene_.triangles[ref.index], rays, tmins, nullptr, normal, max_t, w)) candidate = j;
-  }
+  double max_t = 0.0;
+  const uint32_t candidate = plane_candidate(job, list, n, rays, tmins, nullptr, normal, max_t, w);
   if (candidate == n) return false;
   const uint32_t element = tree_.ref(list[candidate].ref);
   // The limit leaves room for the triangle itself, which lies on its own plane.
@@ -1303,19 +1319,12 @@ bool FrustumCaster::fill_plane_ahead(const Job& job, const Incidence* list, uint
     return false;
   }
   w.occluders.clear();
-  for (uint32_t prim : w.ahead) {
-    if (prim != element && !coplanar(prim, element, normal)) w.occluders.push_back(prim);
+  for (const AheadElement& e : w.ahead) {
+    if (e.prim != element && !coplanar(e.prim, element, normal)) w.occluders.push_back(e.prim);
   }
-  for (uint32_t j = 0; j < n; ++j) {
-    const Incidence& e = list[j];
-    if (double(e.distance) > max_t) break;  // sorted nearest first
-    const uint32_t prim = tree_.ref(e.ref);
-    if (prim == element || e.x1 < job.x0 || e.x0 > job.x1 || e.y1 < job.y0 || e.y0 > job.y1) continue;
-    if (coplanar(prim, element, normal)) continue;
-    if (std::find(w.occluders.begin(), w.occluders.end(), prim) != w.occluders.end()) continue;
-    w.occluders.push_back(prim);
+  if (w.occluders.size() > kMaxFillOccluders || !add_list_occluders(job, list, n, element, normal, max_t, w)) {
+    return false;
   }
-  if (w.occluders.size() > kMaxFillOccluders) return false;
   fill_from_plane(job, element, normal, w);
   ++w.counters.frustum_fills;
   return true;

@@ -125,6 +125,11 @@ class FrustumCaster {
                     Worker& w) const;
   bool fill_plane_ahead(const Job& job, const Incidence* list, uint32_t n, const std::array<Ray, 4>& rays,
                         const std::array<double, 4>& tmins, Worker& w);
+  uint32_t plane_candidate(const Job& job, const Incidence* list, uint32_t n, const std::array<Ray, 4>& rays,
+                           const std::array<double, 4>& tmins, const Aabb* cell, Vec3& normal, double& max_t,
+                           Worker& w) const;
+  bool add_list_occluders(const Job& job, const Incidence* list, uint32_t n, uint32_t element, const Vec3& normal,
+                          double max_t, Worker& w) const;
   void resolve_against_ahead(const Job& job, const std::array<Ray, 4>& rays, const std::array<double, 4>& tmins,
                              Worker& w);
   bool classify_planes(int x0, int x1, int y0, int y1, const Aabb& box, uint8_t planes, uint8_t& straddle) const;

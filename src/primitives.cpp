@@ -193,6 +193,20 @@ bool intersect_triangle(const Triangle& tri, const Ray& ray, double tmin, double
                    : watertight_triangle<0, 1, 2>(tri, ray, tmin, tmax, t);
 }
 
+// The sphere's hit from its roots r0 <= r1: the near one within [tmin, tmax], else the far one
+// (the ray starts inside, or the near root lies before tmin).
+inline bool nearer_root_within(double r0, double r1, double tmin, double tmax, double& t) {
+  if (r0 >= tmin && r0 <= tmax) {
+    t = r0;
+    return true;
+  }
+  if (r1 >= tmin && r1 <= tmax) {
+    t = r1;
+    return true;
+  }
+  return false;
+}
+
 bool intersect_sphere(const Sphere& s, const Ray& ray, double tmin, double tmax, double& t) {
   const Vec3 oc = ray.origin - s.center;
   const Vec3& d = ray.dir;
@@ -210,15 +224,7 @@ bool intersect_sphere(const Sphere& s, const Ray& ray, double tmin, double tmax,
   const double disc = a * (r2 - glm::length2(perp));
   double r0, r1;
   if (solve_half_b(a, h, c, disc, r0, r1) == 0) return false;
-  if (r0 >= tmin && r0 <= tmax) {
-    t = r0;
-    return true;
-  }
-  if (r1 >= tmin && r1 <= tmax) {
-    t = r1;
-    return true;
-  }
-  return false;
+  return nearer_root_within(r0, r1, tmin, tmax, t);
 }
 
 SphereFromOrigin sphere_from_origin(const Sphere& s, const Vec3& origin) {
@@ -240,15 +246,7 @@ bool intersect_sphere(const SphereFromOrigin& k, const Vec3& d, double tmin, dou
   const double disc = a * (k.r2 - glm::length2(perp));
   double r0, r1;
   if (solve_half_b(a, h, k.c, disc, r0, r1) == 0) return false;
-  if (r0 >= tmin && r0 <= tmax) {
-    t = r0;
-    return true;
-  }
-  if (r1 >= tmin && r1 <= tmax) {
-    t = r1;
-    return true;
-  }
-  return false;
+  return nearer_root_within(r0, r1, tmin, tmax, t);
 }
 
 bool intersect_box(const Box& b, const Ray& ray, double tmin, double tmax, double& t) {
