@@ -6,7 +6,7 @@
 #include "data_gen/building_layout.h"
 #include "data_gen/furniture.h"
 #include "data_gen/piece_stream.h"
-#include "src/status.h"
+#include "src/core/status.h"
 
 #include <cstdint>
 #include <string>

@@ -22,7 +22,7 @@
 // may be called from any thread.
 #pragma once
 
-#include "src/geometry.h"
+#include "src/core/geometry.h"
 
 #include <array>
 #include <cstdint>

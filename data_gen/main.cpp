@@ -9,7 +9,7 @@
 #include "data_gen/piece_stream.h"
 #include "data_gen/spheres.h"
 #include "data_gen/terrain.h"
-#include "src/camera_path.h"
+#include "src/io/camera_path.h"
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>

@@ -13,8 +13,8 @@
 // predicts the written counts exactly; PlyWriter rejects any difference.
 #pragma once
 
-#include "src/geometry.h"
-#include "src/ply_writer.h"
+#include "src/core/geometry.h"
+#include "src/io/ply_writer.h"
 
 #include <cstdint>
 

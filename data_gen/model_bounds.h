@@ -2,8 +2,8 @@
 // endianness) and ASCII PLY, NFF (spheres, cones, polygons) and OBJ vertices.
 #pragma once
 
-#include "src/geometry.h"
-#include "src/status.h"
+#include "src/core/geometry.h"
+#include "src/core/status.h"
 
 #include <string>
 

@@ -10,9 +10,9 @@
 //          mid-height, looking ahead.
 #pragma once
 
-#include "src/geometry.h"
-#include "src/scene.h"
-#include "src/status.h"
+#include "src/core/geometry.h"
+#include "src/core/scene.h"
+#include "src/core/status.h"
 
 #include <cstdint>
 #include <string>

@@ -4,9 +4,9 @@
 #pragma once
 
 #include "data_gen/mesh_builder.h"
-#include "src/progress.h"
-#include "src/ply_writer.h"
-#include "src/status.h"
+#include "src/core/progress.h"
+#include "src/io/ply_writer.h"
+#include "src/core/status.h"
 
 #include <cstdint>
 #include <functional>

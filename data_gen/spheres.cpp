@@ -2,9 +2,9 @@
 // are walked depth-first and recomputed (from per-node seeded streams) instead of stored.
 #include "data_gen/spheres.h"
 
-#include "src/progress.h"
+#include "src/core/progress.h"
 #include "data_gen/rng.h"
-#include "src/nff_writer.h"
+#include "src/io/nff_writer.h"
 
 #include <fmt/format.h>
 

@@ -12,7 +12,7 @@
 // Every file has a camera (`v`), a background, lights and a ground polygon.
 #pragma once
 
-#include "src/status.h"
+#include "src/core/status.h"
 
 #include <cstdint>
 #include <string>

@@ -7,7 +7,7 @@
 #pragma once
 
 #include "data_gen/piece_stream.h"
-#include "src/status.h"
+#include "src/core/status.h"
 
 #include <cstdint>
 

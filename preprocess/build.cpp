@@ -3,12 +3,12 @@
 
 #include "preprocess/spill.h"
 #include "preprocess/walkable_grid.h"
-#include "src/kdtree.h"
-#include "src/portals.h"
-#include "src/progress.h"
-#include "src/scene_reader.h"
-#include "src/store_model.h"
-#include "src/tessellate.h"
+#include "src/engine/kdtree.h"
+#include "src/raster/portals.h"
+#include "src/core/progress.h"
+#include "src/io/scene_reader.h"
+#include "src/paging/store_model.h"
+#include "src/core/tessellate.h"
 #include "store/page_file.h"
 #include "store/store_file.h"
 

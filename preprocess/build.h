@@ -1,6 +1,6 @@
 // The out-of-core store build behind frontier-build.
 //
-//   1. ingest   every input is pulled through its streaming reader (src/scene_reader.h),
+//   1. ingest   every input is pulled through its streaming reader (src/io/scene_reader.h),
 //               triangulated and appended to one spill file; bounds and a reservoir sample of
 //               primitive centres are kept, nothing else. When every input is binary PLY
 //               there is no spill file: stage 3 (or stage 4, if everything fits) parses the
@@ -21,7 +21,7 @@
 //
 // The sidecar of a single input (MODEL.json beside MODEL, written by frontier-gen building) is
 // read before anything else, so a bad one fails the build at once; only its cells-and-portals
-// graph is kept (src/portals.h).
+// graph is kept (src/raster/portals.h).
 //
 // Threads: the serial stages run as two halves on two threads: in ingest one thread parses
 // while the other keeps bounds and sample and writes the spill file; in the spill pass and
@@ -34,8 +34,8 @@
 // behind, and the next build of the same output removes such leftovers.
 #pragma once
 
-#include "src/cell_codec.h"
-#include "src/status.h"
+#include "src/paging/cell_codec.h"
+#include "src/core/status.h"
 
 #include <cstdint>
 #include <string>
@@ -59,7 +59,7 @@ struct BuildOptions {
   // nothing; a malformed one fails the build.
   bool portals = true;
   // When > 0, spheres, cones and boxes are tessellated into closed triangle meshes with this
-  // many segments around a circle (src/tessellate.h) as they are read: a store of triangles
+  // many segments around a circle (src/core/tessellate.h) as they are read: a store of triangles
   // only, which the rasterizing visibility classes draw (they skip other primitives).
   int tessellate = 0;
   bool quiet = false;

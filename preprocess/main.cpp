@@ -1,6 +1,6 @@
 // frontier-build: streams model files into one store file in bounded memory (preprocess/build.h).
 #include "preprocess/build.h"
-#include "src/progress.h"
+#include "src/core/progress.h"
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>

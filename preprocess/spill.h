@@ -7,8 +7,8 @@
 // count). Host byte order: a spill file never leaves the build that wrote it.
 #pragma once
 
-#include "src/scene.h"
-#include "src/status.h"
+#include "src/core/scene.h"
+#include "src/core/status.h"
 
 #include <cstdint>
 #include <cstdio>

@@ -6,9 +6,9 @@
 // triangle costs a column of at most 2 sqrt(3) band + 1 voxels per band voxel it owns.
 #include "preprocess/walkable_grid.h"
 
-#include "src/byte_io.h"
-#include "src/collision_grid.h"
-#include "src/tessellate.h"
+#include "src/core/byte_io.h"
+#include "src/paging/collision_grid.h"
+#include "src/core/tessellate.h"
 #include "store/page_format.h"
 
 #include <openvdb/openvdb.h>

@@ -2,11 +2,11 @@
 // against brute force with the tie rule (two hits within 1e-6 relative distance).
 #pragma once
 
-#include "src/kdtree.h"
-#include "src/ray_walk.h"
-#include "src/render.h"
-#include "src/scene.h"
-#include "src/view.h"
+#include "src/engine/kdtree.h"
+#include "src/engine/ray_walk.h"
+#include "src/engine/render.h"
+#include "src/core/scene.h"
+#include "src/core/view.h"
 
 #include <tbb/parallel_for.h>
 

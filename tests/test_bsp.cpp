@@ -9,11 +9,11 @@
 //  * front to back is back to front reversed; the coverage mask partitions sub-samples exactly,
 //    measures area, fills pixels (the early-out) and its edge error falls with N;
 //  * a moving object renders correctly at several transforms without rebuilding the tree.
-#include "src/bsp.h"
-#include "src/bsp_render.h"
-#include "src/raster.h"
-#include "src/tessellate.h"
-#include "src/view.h"
+#include "src/raster/bsp.h"
+#include "src/raster/bsp_render.h"
+#include "src/raster/raster.h"
+#include "src/core/tessellate.h"
+#include "src/core/view.h"
 #include "tests/engine_util.h"
 
 #include <gtest/gtest.h>

@@ -3,8 +3,8 @@
 // truncation detected, a killed build leaves no store, peak memory within the budget, and the
 // frontier-store tool.
 #include "preprocess/build.h"
-#include "src/store_model.h"
-#include "src/collision_grid.h"
+#include "src/paging/store_model.h"
+#include "src/paging/collision_grid.h"
 #include "store/page_file.h"
 #include "store/store_file.h"
 #include "tests/engine_util.h"

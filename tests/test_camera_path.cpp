@@ -1,5 +1,5 @@
 // .cam camera paths: exact write/read round trip and errors that name the line.
-#include "src/camera_path.h"
+#include "src/io/camera_path.h"
 
 #include <gtest/gtest.h>
 

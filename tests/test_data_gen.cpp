@@ -5,10 +5,10 @@
 // they join and a connected portal graph; --triangles within 5%; bounded memory on a large
 // model; walk paths in free space; clear errors for impossible parameters.
 // Also unit tests of the streaming writers in src/ (PlyWriter one- and two-pass, NffWriter).
-#include "src/camera_path.h"
-#include "src/nff_writer.h"
-#include "src/ply_writer.h"
-#include "src/scene.h"
+#include "src/io/camera_path.h"
+#include "src/io/nff_writer.h"
+#include "src/io/ply_writer.h"
+#include "src/core/scene.h"
 #include "tests/process_util.h"
 #include "tests/test_files.h"
 

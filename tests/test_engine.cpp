@@ -1,7 +1,7 @@
 // Frustum casting and ray walking against brute force on random scenes and cameras, plus the
 // hard cases: eye on split planes and cell corners, axis-parallel views, extreme field of view,
 // far-from-origin coordinates, one-primitive cells, closed meshes that must not leak.
-#include "src/tessellate.h"
+#include "src/core/tessellate.h"
 #include "tests/engine_util.h"
 
 #include <gtest/gtest.h>

@@ -2,9 +2,9 @@
 // ties (SPD scenes at 129² and 513², a random scene, a camera inside a bound), bounds that
 // enclose their surfaces, and clip planes, capping, back-sample culling and texture coordinates
 // changing exactly the pixels they should.
-#include "src/imr.h"
-#include "src/scene.h"
-#include "src/view.h"
+#include "src/raster/imr.h"
+#include "src/core/scene.h"
+#include "src/core/view.h"
 #include "tests/engine_util.h"
 #include "tests/test_files.h"
 

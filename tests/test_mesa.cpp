@@ -5,8 +5,8 @@
 // sizes and non-triangle scenes are refused; renderers come and go in one process.
 #include "viewer/mesa_renderer.h"
 
-#include "src/raster.h"
-#include "src/tessellate.h"
+#include "src/raster/raster.h"
+#include "src/core/tessellate.h"
 
 #include <gtest/gtest.h>
 

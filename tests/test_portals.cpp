@@ -1,4 +1,4 @@
-// Cells and portals (src/portals.h), checked on buildings that frontier-gen makes:
+// Cells and portals (src/raster/portals.h), checked on buildings that frontier-gen makes:
 // the sidecar reader against an independent full JSON parse, the section codec (round trip,
 // every truncation and every byte flip reported), rooms_at against a linear scan, traversal
 // properties (a wall without a door hides the room behind it; a room two doors away is seen
@@ -6,11 +6,11 @@
 // against brute-force primary rays: every surface point a pixel sees lies in a region, inside a
 // visit of its room whose rectangle holds the pixel. Finally the store's "portals" section as
 // frontier-build writes it and frontier-store reports it.
-#include "src/portals.h"
-#include "src/ray_walk.h"
-#include "src/scene.h"
-#include "src/store_model.h"
-#include "src/view.h"
+#include "src/raster/portals.h"
+#include "src/engine/ray_walk.h"
+#include "src/core/scene.h"
+#include "src/paging/store_model.h"
+#include "src/core/view.h"
 #include "store/page_file.h"
 #include "store/store_file.h"
 #include "tests/process_util.h"

@@ -2,7 +2,7 @@
 // closed meshes never leak (random rays, and rays aimed exactly at shared vertices and
 // edges), hit points lie on the surface, grazing rays agree with a long-double reference,
 // results do not depend on where the model sits, and axis-parallel rays never make NaN.
-#include "src/primitives.h"
+#include "src/core/primitives.h"
 
 #include <gtest/gtest.h>
 

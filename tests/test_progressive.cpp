@@ -3,7 +3,7 @@
 // does not declare cost nothing (counters prove it).
 #include "tests/engine_util.h"
 
-#include "src/frustum.h"
+#include "src/engine/frustum.h"
 
 #include <gtest/gtest.h>
 

@@ -3,8 +3,8 @@
 // crossing the near plane and reaching behind the eye), a closed sphere and a room. Plus the
 // properties of the fill rule (a mesh covers each pixel exactly once, counted in fragments),
 // back-face culling (exactly the back faces) and determinism across threads and tilings.
-#include "src/raster.h"
-#include "src/shading.h"
+#include "src/raster/raster.h"
+#include "src/engine/shading.h"
 #include "tests/engine_util.h"
 
 #include <gtest/gtest.h>

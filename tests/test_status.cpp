@@ -1,5 +1,5 @@
 // Status/Result basics.
-#include "src/status.h"
+#include "src/core/status.h"
 
 #include <gtest/gtest.h>
 

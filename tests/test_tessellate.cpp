@@ -2,7 +2,7 @@
 // outward, areas converge, the chord-error mode picks the fewest segments that meet the error,
 // sources and materials survive, and a tessellated SPD scene renders by frustum casting exactly
 // as brute force does (and close to the curved original, pixel for pixel by source id).
-#include "src/tessellate.h"
+#include "src/core/tessellate.h"
 
 #include "tests/engine_util.h"
 #include "tests/test_files.h"

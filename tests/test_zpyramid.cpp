@@ -4,7 +4,7 @@
 // really is (drawing it, with ids that win ties, changes no pixel); the hierarchical test agrees
 // with a per-pixel test of the same rectangle; and the wall cases (behind, beside, straddling
 // the eye plane, behind a wall with a hole near or over it).
-#include "src/zpyramid.h"
+#include "src/raster/zpyramid.h"
 
 #include <gtest/gtest.h>
 

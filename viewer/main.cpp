@@ -11,32 +11,32 @@
 //       a model file (NFF, PLY, OBJ, OFF) rendered in memory (or a store with --in-memory);
 //   frontier-view MODEL --headless --method imr|tessellated|mesa [--order O] [--bound-slices N]
 //       [--tessellation N] [--back-sample-culling]
-//       immediate-mode ray casting of its curved primitives (src/imr.h), or the paper's
+//       immediate-mode ray casting of its curved primitives (src/raster/imr.h), or the paper's
 //       baselines: the objects tessellated and lit per vertex on frontier's rasterizer, or
 //       through real OpenGL (Mesa llvmpipe, offscreen EGL);
 //   frontier-view MODEL --headless --method bsp [--bsp-candidates K] [--aa NxN] [--bsp-stats F]
-//       a BSP tree (src/bsp.h) built with K root candidates per node, rendered back to front
+//       a BSP tree (src/raster/bsp.h) built with K root candidates per node, rendered back to front
 //       (painter's, no depth buffer) or, with --aa, front to back with an NxN coverage mask.
 //   Any of these with --visibility exhaustive|frustum-cull|occlusion-cull|portals renders with
-//   that visibility class (src/visibility.h) and the z-buffer rasterizer instead of frustum
+//   that visibility class (src/raster/visibility.h) and the z-buffer rasterizer instead of frustum
 //   casting (frustum-advance, the default).
 //
 // Exit codes: 0 success, 1 bad input (the message names the file and line or page), 2 bad options.
-#include "src/camera_path.h"
-#include "src/collision_grid.h"
-#include "src/bsp.h"
-#include "src/bsp_render.h"
-#include "src/gouraud.h"
-#include "src/image.h"
-#include "src/imr.h"
-#include "src/kdtree.h"
-#include "src/progress.h"
-#include "src/render.h"
-#include "src/scene.h"
-#include "src/store_model.h"
-#include "src/view.h"
-#include "src/walker.h"
-#include "src/walkthrough.h"
+#include "src/io/camera_path.h"
+#include "src/paging/collision_grid.h"
+#include "src/raster/bsp.h"
+#include "src/raster/bsp_render.h"
+#include "src/raster/gouraud.h"
+#include "src/io/image.h"
+#include "src/raster/imr.h"
+#include "src/engine/kdtree.h"
+#include "src/core/progress.h"
+#include "src/engine/render.h"
+#include "src/core/scene.h"
+#include "src/paging/store_model.h"
+#include "src/core/view.h"
+#include "src/paging/walker.h"
+#include "src/paging/walkthrough.h"
 #include "store/page_format.h"
 #include "viewer/mesa_renderer.h"
 #include "viewer/window.h"

@@ -20,10 +20,10 @@
 // on that thread or the renderer is destroyed). Several renderers may exist at once.
 #pragma once
 
-#include "src/sample_buffer.h"
-#include "src/scene.h"
-#include "src/status.h"
-#include "src/view.h"
+#include "src/core/sample_buffer.h"
+#include "src/core/scene.h"
+#include "src/core/status.h"
+#include "src/core/view.h"
 
 #include <cstdint>
 #include <memory>

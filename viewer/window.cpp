@@ -23,8 +23,8 @@
 // frames.
 #include "viewer/window.h"
 
-#include "src/image.h"
-#include "src/walker.h"
+#include "src/io/image.h"
+#include "src/paging/walker.h"
 #include "viewer/hud.h"
 
 #include <GLFW/glfw3.h>

@@ -35,12 +35,12 @@
 // frame ms minus page-in (decode + refine + graft), waiting for pages and reconstruction.
 #include "preprocess/build.h"
 #include "preprocess/walkable_grid.h"
-#include "src/collision_grid.h"
-#include "src/camera_path.h"
-#include "src/image.h"
-#include "src/progress.h"
-#include "src/store_model.h"
-#include "src/walkthrough.h"
+#include "src/paging/collision_grid.h"
+#include "src/io/camera_path.h"
+#include "src/io/image.h"
+#include "src/core/progress.h"
+#include "src/paging/store_model.h"
+#include "src/paging/walkthrough.h"
 
 #include <CLI/CLI.hpp>
 #include <fmt/core.h>

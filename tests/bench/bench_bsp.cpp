@@ -16,12 +16,12 @@
 //   data_gen:      frontier-gen building --triangles 1000000 -o building.ply
 //                  frontier-gen terrain --triangles 1000000 -o terrain.ply
 //   bench_bsp MODEL... [--threads 2] [--all-max 20000] [--budget-ms 120000]
-#include "src/bsp.h"
-#include "src/bsp_render.h"
-#include "src/raster.h"
-#include "src/scene.h"
-#include "src/tessellate.h"
-#include "src/view.h"
+#include "src/raster/bsp.h"
+#include "src/raster/bsp_render.h"
+#include "src/raster/raster.h"
+#include "src/core/scene.h"
+#include "src/core/tessellate.h"
+#include "src/core/view.h"
 
 #include <CLI/CLI.hpp>
 #include <fmt/core.h>

@@ -6,9 +6,9 @@
 // every page (pages read into memory first, so only decoding is timed) and of refining every
 // decoded page into the subtree frontier-view builds when it pages the cell in. Prints Markdown.
 #include "preprocess/build.h"
-#include "src/progress.h"
-#include "src/store_model.h"
-#include "src/walkthrough.h"
+#include "src/core/progress.h"
+#include "src/paging/store_model.h"
+#include "src/paging/walkthrough.h"
 
 #include <CLI/CLI.hpp>
 #include <fmt/core.h>

@@ -1,6 +1,6 @@
 // Primary-ray throughput of frontier (frustum casting, ray walking) against Embree 3 on triangle
 // scenes, visibility only: every method casts the same rays (View::ray per pixel centre, tnear =
-// View::tmin) into the same triangles (curved NFF primitives tessellated first, src/tessellate.h),
+// View::tmin) into the same triangles (curved NFF primitives tessellated first, src/core/tessellate.h),
 // on the same number of threads, in the same process. Embree is measured with rtcIntersect1 per
 // ray, 8- and 16-wide packets (4x2 and 4x4 pixels of a tile) and rtcIntersect1M streams of a
 // whole tile. Each figure is the best of --repeats frames.
@@ -11,11 +11,11 @@
 //
 // Prints a Markdown table (ratios against frustum casting and ray walking of the same run) and,
 // with --json FILE, one JSON object per row and line.
-#include "src/kdtree.h"
-#include "src/render.h"
-#include "src/scene.h"
-#include "src/tessellate.h"
-#include "src/view.h"
+#include "src/engine/kdtree.h"
+#include "src/engine/render.h"
+#include "src/core/scene.h"
+#include "src/core/tessellate.h"
+#include "src/core/view.h"
 
 #include <CLI/CLI.hpp>
 #include <embree3/rtcore.h>

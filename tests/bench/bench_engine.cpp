@@ -3,10 +3,10 @@
 // immediate-mode paper's Table 4 measure: hits / ray-primitive tests). Visibility only, no
 // shading. Prints a Markdown table; the ratio column is frustum rays/s over ray walking rays/s
 // measured in the same run, same scene, same rays.
-#include "src/kdtree.h"
-#include "src/render.h"
-#include "src/scene.h"
-#include "src/view.h"
+#include "src/engine/kdtree.h"
+#include "src/engine/render.h"
+#include "src/core/scene.h"
+#include "src/core/view.h"
 
 #include <CLI/CLI.hpp>
 #include <fmt/core.h>

@@ -11,12 +11,12 @@
 // scene against frame time per tessellation level, with IMR's exact point.
 //
 //   bench_imr --spd ../shared/data/spd --json imr.json          (Markdown tables on stdout)
-#include "src/gouraud.h"
-#include "src/imr.h"
-#include "src/kdtree.h"
-#include "src/render.h"
-#include "src/scene.h"
-#include "src/view.h"
+#include "src/raster/gouraud.h"
+#include "src/raster/imr.h"
+#include "src/engine/kdtree.h"
+#include "src/engine/render.h"
+#include "src/core/scene.h"
+#include "src/core/view.h"
 #include "viewer/mesa_renderer.h"
 
 #include <CLI/CLI.hpp>

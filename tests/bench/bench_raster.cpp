@@ -5,11 +5,11 @@
 //
 //   frontier-gen building --triangles 1000000 -o building.ply
 //   bench_raster building.ply --threads 2
-#include "src/kdtree.h"
-#include "src/raster.h"
-#include "src/render.h"
-#include "src/scene.h"
-#include "src/view.h"
+#include "src/engine/kdtree.h"
+#include "src/raster/raster.h"
+#include "src/engine/render.h"
+#include "src/core/scene.h"
+#include "src/core/view.h"
 
 #include <CLI/CLI.hpp>
 #include <fmt/core.h>

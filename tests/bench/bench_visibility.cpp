@@ -15,11 +15,11 @@
 //
 // The table gives mean and max per class, the ratio to the oracle and to frustum advance, all
 // from the same run.
-#include "src/camera_path.h"
-#include "src/progress.h"
-#include "src/store_model.h"
-#include "src/visibility.h"
-#include "src/walkthrough.h"
+#include "src/io/camera_path.h"
+#include "src/core/progress.h"
+#include "src/paging/store_model.h"
+#include "src/raster/visibility.h"
+#include "src/paging/walkthrough.h"
 
 #include <CLI/CLI.hpp>
 #include <fmt/core.h>

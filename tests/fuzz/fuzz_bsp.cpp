@@ -5,8 +5,8 @@
 // preserved, depth and size within their bounds); both renderers then draw a small frame.
 // Any crash, sanitizer report, hang or abort is a finding. The same property runs over fixed
 // seeds in CI as BspFuzzSeeds.DecodedSoupsBuildValidTrees (tests/test_bsp.cpp).
-#include "src/bsp.h"
-#include "src/bsp_render.h"
+#include "src/raster/bsp.h"
+#include "src/raster/bsp_render.h"
 
 #include <cstdint>
 #include <cstdio>

@@ -2,8 +2,8 @@
 // the input bytes become a file, which is read to the end through the pull interface and
 // then through load_scene. Any crash, leak, sanitizer report or hang is a finding; an error
 // Status is the expected outcome for garbage.
-#include "src/scene.h"
-#include "src/scene_reader.h"
+#include "src/core/scene.h"
+#include "src/io/scene_reader.h"
 
 #include <cstdint>
 #include <cstdio>

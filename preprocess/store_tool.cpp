@@ -1,0 +1,186 @@
+// frontier-store: looks inside a store file.
+//   info FILE    what the store holds: primitives, cells, depth, bytes per triangle, codec,
+//                lattice, collision grid, cells and portals, sections, a histogram of cell sizes
+//   verify FILE  every checksum, every structural invariant (the portals section included),
+//                every cell page decoded and checked against its cell, every collision brick
+//                decoded, every page owned by exactly one cell or brick; exit 1 naming the
+//                first bad part
+#include "src/paging/collision_grid.h"
+#include "src/core/progress.h"
+#include "src/paging/store_model.h"
+#include "store/page_file.h"
+#include "store/store_file.h"
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+
+#include <bit>
+#include <cstdio>
+#include <map>
+
+namespace {
+
+using frontier::StoreCell;
+using frontier::StoreModel;
+
+int fail(const frontier::Status& s) {
+  std::fprintf(stderr, "frontier-store: %s\n", s.to_string().c_str());
+  return 1;
+}
+
+std::string vec(const frontier::Vec3& v) { return fmt::format("({:.9g}, {:.9g}, {:.9g})", v.x, v.y, v.z); }
+
+int info(const std::string& path) {
+  auto opened = StoreModel::open(path);
+  if (!opened) return fail(opened.status());
+  const StoreModel& model = **opened;
+  const frontier::StoreModelInfo& in = model.info();
+  const auto& reader = model.reader();
+  uint64_t empty = 0, page_bytes = 0, largest = 0;
+  std::map<uint32_t, uint64_t> histogram;  // bin: references in [2^(b-1), 2^b)
+  for (const StoreCell& c : model.cells()) {
+    if (c.page == StoreCell::kNoPage) {
+      ++empty;
+      continue;
+    }
+    page_bytes += reader.page_handle(c.page).size;
+    largest = std::max<uint64_t>(largest, c.references);
+    ++histogram[static_cast<uint32_t>(std::bit_width(c.references))];
+  }
+  const double tris = static_cast<double>(std::max<uint64_t>(in.triangles, 1));
+  std::string out;
+  out += fmt::format("store       {} ({} bytes, format version {})\n", path, reader.file_size(), reader.version());
+  std::string inputs;
+  for (const std::string& i : in.inputs) inputs += (inputs.empty() ? "" : ", ") + i;
+  out += fmt::format("inputs      {}\n", inputs);
+  out += fmt::format("primitives  {} ({} triangles; {} input primitives; {} degenerate dropped)\n", in.primitives,
+                     in.triangles, in.input_primitives, in.degenerate_dropped);
+  out += fmt::format("references  {} ({:.2f} per primitive: straddling primitives are stored in each cell)\n",
+                     in.references,
+                     static_cast<double>(in.references) / static_cast<double>(std::max<uint64_t>(in.primitives, 1)));
+  out += fmt::format("cells       {} ({} empty, {} pages), depth {}, --cell-prims {}, largest {}\n",
+                     model.cells().size(), empty, model.cells().size() - empty, model.depth(), in.cell_prims, largest);
+  out += fmt::format("codec       {}\n", in.codec == frontier::CellCodec::Draco ? "draco" : "raw");
+  if (in.codec == frontier::CellCodec::Draco) {
+    out += fmt::format("lattice     {} bits, step {:.9g} (max error {:.3g} per axis), origin {}\n", in.lattice.bits,
+                       in.lattice.step, in.lattice.max_error(), vec(in.lattice.origin));
+  }
+  out += fmt::format("bounds      {} .. {}\n", vec(in.bounds.lo), vec(in.bounds.hi));
+  out += fmt::format("bytes/tri   {:.2f} (whole file), {:.2f} (pages)\n",
+                     static_cast<double>(reader.file_size()) / tris, static_cast<double>(page_bytes) / tris);
+  out += fmt::format("materials   {}, lights {}, camera {}\n", in.materials.size(), in.lights.size(),
+                     in.camera ? "yes" : "no");
+  if (in.walkable) {
+    auto grid = frontier::open_collision_grid(reader);
+    if (!grid) return fail(grid.status());
+    uint64_t brick_bytes = 0;
+    for (uint64_t p : (*grid)->brick_pages()) brick_bytes += reader.page_handle(p).size;
+    out += fmt::format("walkable    yes: distance grid, voxel {:.4g}, band {} voxels, {} active voxels in {} bricks "
+                       "of {}^3 ({:.1f} MB of pages)\n",
+                       (*grid)->voxel_size(), (*grid)->band_voxels(), (*grid)->active_voxels(),
+                       (*grid)->counters().bricks, frontier::sdf_format::kBrickVoxels,
+                       static_cast<double>(brick_bytes) / 1e6);
+  } else {
+    out += "walkable    no\n";
+  }
+  if (const frontier::PortalGraph* portals = model.portals()) {
+    out += fmt::format("portals     {} rooms, {} portals (walls {:.4g}, slabs {:.4g})\n", portals->room_count(),
+                       portals->portal_count(), portals->wall_thickness(), portals->slab_thickness());
+  } else {
+    out += "portals     none\n";
+  }
+  out += "sections   ";
+  for (const auto& s : reader.sections()) out += fmt::format(" {} {}B", s.name, s.handle.size);
+  out += "\ncell sizes  (references per non-empty cell)\n";
+  uint64_t most = 1;
+  for (const auto& [bin, n] : histogram) most = std::max(most, n);
+  for (const auto& [bin, n] : histogram) {
+    const uint64_t lo = bin == 0 ? 0 : uint64_t{1} << (bin - 1), hi = (uint64_t{1} << bin) - 1;
+    out += fmt::format("  {:>6}..{:<6} {:>9}  {}\n", lo, hi, n, std::string(1 + 50 * n / most, '#'));
+  }
+  std::fputs(out.c_str(), stdout);
+  return 0;
+}
+
+int verify(const std::string& path, bool quiet) {
+  frontier::store::PosixFileSystem fs;
+  auto reader = frontier::store::StoreReader::open(fs, path);
+  if (!reader) return fail(reader.status());
+  // Every checksum first (header, footer, directory, sections, pages), then the structure.
+  if (frontier::Status s = (*reader)->verify(); !s) return fail(s);
+  const size_t pages = (*reader)->page_count();
+  auto opened = StoreModel::open(std::move(*reader));
+  if (!opened) return fail(opened.status());
+  const StoreModel& model = **opened;
+  frontier::Scene cell;
+  uint64_t references = 0, decoded_pages = 0;
+  std::vector<uint8_t> page_used(pages, 0);
+  frontier::Progress progress("verify", "cells", model.cells().size(), quiet);
+  for (uint32_t c = 0; c < model.cells().size(); ++c) {
+    const StoreCell& rec = model.cells()[c];
+    if (rec.page != StoreCell::kNoPage) {
+      if (page_used[rec.page]) {
+        return fail(frontier::Status::corruption(fmt::format("{}: page {} belongs to two cells", path, rec.page)));
+      }
+      page_used[rec.page] = 1;
+      if (frontier::Status s = model.read_cell(c, cell); !s) return fail(s);
+      if (cell.size() != rec.references) {
+        return fail(frontier::Status::corruption(fmt::format("{}: cell {} page {}: {} primitives, its record says {}",
+                                                             path, c, rec.page, cell.size(), rec.references)));
+      }
+      references += cell.size();
+      ++decoded_pages;
+    }
+    progress.advance(1);
+  }
+  progress.finish();
+  // The collision grid's bricks: each page read, checked and decoded, none shared with a cell.
+  uint64_t bricks = 0;
+  if (model.info().walkable) {
+    auto grid = frontier::open_collision_grid(model.reader());
+    if (!grid) return fail(grid.status());
+    for (uint64_t p : (*grid)->brick_pages()) {
+      if (p >= pages || page_used[p]) {
+        return fail(frontier::Status::corruption(fmt::format("{}: sdf brick page {} is missing or belongs to a cell", path, p)));
+      }
+      page_used[p] = 1;
+    }
+    if (frontier::Status s = (*grid)->check_all_bricks(); !s) return fail(s);
+    bricks = (*grid)->counters().bricks;
+  }
+  for (size_t p = 0; p < pages; ++p) {
+    if (!page_used[p]) return fail(frontier::Status::corruption(fmt::format("{}: page {} belongs to nothing", path, p)));
+  }
+  if (!quiet) {
+    // StoreModel::open has parsed and checked the portals section, if any.
+    const std::string portals =
+        model.portals() != nullptr
+            ? fmt::format(", {} rooms and {} portals", model.portals()->room_count(), model.portals()->portal_count())
+            : "";
+    const std::string grid = bricks > 0 ? fmt::format(", {} collision bricks", bricks) : "";
+    std::printf("%s: ok: %zu pages checksummed, %llu decoded, %llu references in %zu cells, tree depth %u%s%s\n",
+                path.c_str(), pages, static_cast<unsigned long long>(decoded_pages + bricks),
+                static_cast<unsigned long long>(references), model.cells().size(), model.depth(), portals.c_str(),
+                grid.c_str());
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"frontier-store: inspect and check frontier store files (layout: store/FORMAT.md)", "frontier-store"};
+  app.require_subcommand(1);
+  std::string path;
+  bool quiet = false;
+  auto* info_cmd = app.add_subcommand(
+      "info", "primitives, cells, depth, bytes per triangle, codec, lattice, collision grid, rooms and portals, sections, cell size histogram");
+  info_cmd->add_option("file", path, "store file")->required();
+  auto* verify_cmd = app.add_subcommand(
+      "verify", "check every checksum and structural invariant and decode every page (cells and collision bricks); exit 1 naming the first bad one");
+  verify_cmd->add_option("file", path, "store file")->required();
+  verify_cmd->add_flag("-q,--quiet", quiet, "print nothing when the store is good");
+  CLI11_PARSE(app, argc, argv);
+  if (info_cmd->parsed()) return info(path);
+  return verify(path, quiet);
+}

@@ -1,0 +1,103 @@
+// render_frame: method dispatch.
+#include "src/engine/render.h"
+
+#include "src/engine/ray_walk.h"
+
+#include <tbb/blocked_range2d.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <chrono>
+
+namespace frontier {
+
+bool parse_method(const std::string& name, Method& method) {
+  if (name == "brute") method = Method::Brute;
+  else if (name == "raywalk") method = Method::RayWalk;
+  else if (name == "frustum") method = Method::Frustum;
+  else return false;
+  return true;
+}
+
+const char* method_name(Method method) {
+  switch (method) {
+    case Method::Brute: return "brute";
+    case Method::RayWalk: return "raywalk";
+    case Method::Frustum: return "frustum";
+  }
+  return "?";
+}
+
+struct Renderer::Arena {
+  explicit Arena(int threads) : arena(threads) {}
+  tbb::task_arena arena;
+};
+
+Renderer::Renderer(const Scene& scene, const KdTree& tree, int threads)
+    : scene_(scene),
+      tree_(tree),
+      threads_(threads > 0 ? threads : tbb::info::default_concurrency()),
+      shader_(scene, tree),
+      arena_(std::make_unique<Arena>(threads_)) {}
+
+Renderer::~Renderer() = default;
+
+Counters Renderer::render(const View& view, const RenderOptions& options, SampleBuffer& buffer) {
+  Counters total;
+  const auto start = std::chrono::steady_clock::now();
+  if (options.method == Method::Frustum) {
+    if (!caster_) caster_ = std::make_unique<FrustumCaster>(scene_, tree_, shader_, threads_);
+    caster_->set_leaf_pixels(options.leaf_pixels);
+    caster_->begin(view, buffer, marks_, options.shade, options.shadows);
+    caster_->run(options.budget, total);
+  } else {
+    buffer.resize(view.width, view.height);
+    buffer.begin_frame();
+    marks_.resize(tree_.cells().size());
+    marks_.begin_frame();
+    tbb::enumerable_thread_specific<Counters> local;
+    arena_->arena.execute([&] {
+      tbb::parallel_for(tbb::blocked_range2d<int>(0, view.height, 8, 0, view.width, 8),
+                        [&](const tbb::blocked_range2d<int>& r) {
+        Counters& c = local.local();
+        for (int y = r.rows().begin(); y != r.rows().end(); ++y) {
+          for (int x = r.cols().begin(); x != r.cols().end(); ++x) {
+            const Ray ray = view.ray(x, y);
+            const double tmin = view.tmin(ray);
+            const RayHit hit = options.method == Method::Brute
+                                   ? brute_force_hit(scene_, ray, tmin, c)
+                                   : cast_ray(scene_, tree_, ray, tmin, c, &marks_);
+            const size_t i = static_cast<size_t>(y) * static_cast<size_t>(view.width) + static_cast<size_t>(x);
+            buffer.claim_exclusive(i);  // the blocks partition the image
+            const Rgb color = options.shade ? shader_.shade(hit.prim, ray, hit.t, options.shadows, c) : Rgb{};
+            buffer.set(i, hit.prim, hit.t, color);
+            ++c.rays;
+            ++c.samples;
+            if (options.method == Method::RayWalk) ++c.rays_walked;
+          }
+        }
+      });
+    });
+    for (const Counters& c : local) total += c;
+    total.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  }
+  reconstruct(buffer, shader_.background());
+  return total;
+}
+
+Counters render_frame(const Scene& scene, const KdTree& tree, const View& view,
+                      const RenderOptions& options, SampleBuffer& buffer) {
+  Renderer renderer(scene, tree, options.threads);
+  return renderer.render(view, options, buffer);
+}
+
+std::vector<uint32_t> id_image(const Scene& scene, const SampleBuffer& buffer) {
+  std::vector<uint32_t> ids(buffer.size(), kNoPrim);
+  for (size_t i = 0; i < ids.size(); ++i) {
+    if (buffer.confirmed(i) && buffer.prim(i) != kNoPrim) ids[i] = scene.prims[buffer.prim(i)].source;
+  }
+  return ids;
+}
+
+}  // namespace frontier

@@ -1,0 +1,80 @@
+// Phong shading with optional shadow rays.
+#include "src/engine/shading.h"
+
+#include "src/engine/ray_walk.h"
+
+#include <cmath>
+
+namespace frontier {
+
+Effects Effects::declared_by(const Scene& scene) {
+  Effects e;
+  e.headlight = scene.lights.empty();
+  e.shadows = !scene.lights.empty();
+  for (const Material& m : scene.materials) e.specular = e.specular || m.ks > 0.0;
+  return e;
+}
+
+Shader::Shader(const Scene& scene, const KdTree& tree) : scene_(scene), tree_(tree) {
+  effects_ = Effects::declared_by(scene);
+  // NFF convention: light intensity 1/sqrt(number of lights).
+  light_scale_ = scene.lights.empty() ? 1.0 : 1.0 / std::sqrt(static_cast<double>(scene.lights.size()));
+  epsilon_ = 1e-7 * (glm::length(tree.bounds().extent()) + tree.bounds().magnitude());
+}
+
+Rgb Shader::background() const {
+  return {float(scene_.background.x), float(scene_.background.y), float(scene_.background.z)};
+}
+
+Rgb Shader::shade(uint32_t prim, const Ray& ray, double t, bool with_shadows, Counters& counters) const {
+  if (prim == kNoPrim) return background();
+  const PrimRef& ref = scene_.prims[prim];
+  static const Material kDefault;
+  const Material& m = ref.material < scene_.materials.size() ? scene_.materials[ref.material] : kDefault;
+  const Vec3 p = ray.at(t);
+  return lit(m, p, scene_.shading_normal(prim, p, ray), ray, t, with_shadows, counters);
+}
+
+Rgb Shader::shade_surface(uint32_t material, const Vec3& normal, const Ray& ray, double t, Counters& counters) const {
+  static const Material kDefault;
+  const Material& m = material < scene_.materials.size() ? scene_.materials[material] : kDefault;
+  const Vec3 n = glm::dot(normal, ray.dir) > 0.0 ? -normal : normal;
+  return lit(m, ray.at(t), n, ray, t, false, counters);
+}
+
+Rgb Shader::lit(const Material& m, const Vec3& p, const Vec3& n, const Ray& ray, double t, bool with_shadows,
+                Counters& counters) const {
+  const Vec3 v = -ray.dir;
+  Vec3 color = 0.1 * m.color;  // a little ambient so unlit faces stay readable
+  auto add_light = [&](const Vec3& to_light, const Vec3& light_color, double scale) {
+    ++counters.shading_ops;
+    const double ndotl = glm::dot(n, to_light);
+    if (ndotl <= 0.0) return;
+    color += scale * m.kd * ndotl * m.color * light_color;
+    if (effects_.specular && m.ks > 0.0) {
+      ++counters.specular_ops;
+      const Vec3 r = 2.0 * ndotl * n - to_light;
+      const double rv = glm::dot(r, v);
+      if (rv > 0.0) color += scale * m.ks * std::pow(rv, m.shine) * light_color;
+    }
+  };
+  if (effects_.headlight) {
+    add_light(v, Vec3(1.0), 1.0);
+  } else {
+    for (const PointLight& light : scene_.lights) {
+      Vec3 to_light = light.position - p;
+      const double dist = glm::length(to_light);
+      if (dist <= 0.0) continue;
+      to_light /= dist;
+      if (with_shadows && effects_.shadows && glm::dot(n, to_light) > 0.0) {
+        const Ray shadow(p, to_light);
+        if (occluded(scene_, tree_, shadow, epsilon_ * (1.0 + t), dist - epsilon_, counters)) continue;
+      }
+      add_light(to_light, light.color, light_scale_);
+    }
+  }
+  color = glm::clamp(color, Vec3(0.0), Vec3(1.0));
+  return {float(color.x), float(color.y), float(color.z)};
+}
+
+}  // namespace frontier

@@ -1,0 +1,46 @@
+// Per-pixel Phong shading assembled from what the scene declares (frustum-casting paper §5.3):
+// - no lights declared -> one headlight at the eye and no shadow rays at all;
+// - point lights -> diffuse + specular per light, shadow rays only as a deferred effect;
+// - specular terms only for materials with ks > 0.
+// The Effects record says which parts run; counters prove what ran.
+#pragma once
+
+#include "src/core/counters.h"
+#include "src/engine/kdtree.h"
+#include "src/core/sample_buffer.h"
+#include "src/core/scene.h"
+
+namespace frontier {
+
+struct Effects {
+  bool headlight = false;  // scene declares no lights
+  bool specular = false;   // some material has ks > 0
+  bool shadows = false;    // scene has point lights (shadow rays are possible)
+
+  static Effects declared_by(const Scene& scene);
+};
+
+class Shader {
+ public:
+  Shader(const Scene& scene, const KdTree& tree);
+  const Effects& effects() const { return effects_; }
+  // Colour of a primary-ray sample. `with_shadows` selects the deferred shadow effect (it is
+  // ignored when the scene declares no shadow-casting light).
+  Rgb shade(uint32_t prim, const Ray& ray, double t, bool with_shadows, Counters& counters) const;
+  // The same shading for a surface point given by its material and unit normal (facing the
+  // ray or not: flipped as shade() does), without shadows: what renderers that keep no scene
+  // index per pixel (the rasterizing culling classes) use.
+  Rgb shade_surface(uint32_t material, const Vec3& normal, const Ray& ray, double t, Counters& counters) const;
+  Rgb background() const;
+
+ private:
+  const Scene& scene_;
+  const KdTree& tree_;
+  Rgb lit(const Material& m, const Vec3& p, const Vec3& n, const Ray& ray, double t, bool with_shadows,
+          Counters& counters) const;
+  Effects effects_;
+  double light_scale_ = 1.0;
+  double epsilon_ = 1e-9;
+};
+
+}  // namespace frontier

@@ -1,0 +1,40 @@
+// open_scene_reader: picks the format reader by file extension; helpers shared by the readers.
+#include "src/io/read_formats.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cctype>
+
+namespace frontier {
+
+Result<std::unique_ptr<SceneReader>> open_scene_reader(const std::string& path) {
+  const size_t slash = path.find_last_of('/');
+  const size_t dot = path.find_last_of('.');
+  std::string ext;
+  if (dot != std::string::npos && (slash == std::string::npos || dot > slash)) {
+    ext = path.substr(dot + 1);
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  }
+  if (ext == "nff") return open_nff_reader(path);
+  if (ext == "ply") return open_ply_reader(path);
+  if (ext == "obj") return open_obj_reader(path);
+  if (ext == "off") return open_off_reader(path);
+  return Status::unsupported(
+      fmt::format("{}: unknown model format '.{}' (expected .nff, .ply, .obj or .off)", path, ext));
+}
+
+Status byte_error(const std::string& path, uint64_t offset, std::string_view message) {
+  return Status::corruption(fmt::format("{}: byte {}: {}", path, offset, message));
+}
+
+std::string check_polygon_size(int64_t count, std::string_view what) {
+  if (count < 3) return fmt::format("{} has {} vertices (needs at least 3)", what, count);
+  if (count > kMaxPolygonVertices) {
+    return fmt::format("{} has {} vertices (limit {})", what, count, kMaxPolygonVertices);
+  }
+  return {};
+}
+
+}  // namespace frontier

@@ -1,0 +1,91 @@
+// Cell page codecs: how one k-d tree cell's primitives become the payload of a store page and
+// back. The store itself only carries bytes and a codec tag (store/FORMAT.md); the geometry
+// layout of a cell payload is documented in store/FORMAT.md under "Cell pages".
+//
+// Positions live on one global lattice (origin + step * q, q integer per axis) fixed for the
+// whole model, so a vertex shared by two cells decodes to the same double in both: no cracks.
+// The Draco codec stores lattice integers relative to a per-cell integer base and dequantizes
+// itself in double precision (Draco's own float32 dequantization would lose far-from-origin
+// coordinates). The raw codec stores every primitive bit-exactly (doubles), on or off a lattice.
+//
+// Spheres, boxes, cones and quadrics are stored as raw doubles by both codecs. Draco reorders
+// triangles; the page stores every triangle's source and material in Draco's decoded order.
+// Both functions are pure: safe to call from several threads at once.
+#pragma once
+
+#include "src/core/geometry.h"
+#include "src/core/scene.h"
+#include "src/core/status.h"
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+namespace frontier {
+
+// Codec tags as written in a page's codec byte (store/FORMAT.md). 0 is the store's raw tag.
+enum class CellCodec : uint8_t { Raw = 0, Draco = 1 };
+
+// The global quantization lattice: point(q) = origin + step * q for integer q in
+// [0, 2^bits - 1] on every axis. step is the same on all three axes (cubic lattice sized to the
+// largest extent), so the error bound is step/2 per axis, step*sqrt(3)/2 in distance.
+struct Lattice {
+  Vec3 origin{0.0};
+  double step = 1.0;
+  int bits = 16;
+
+  // The lattice covering `bounds` with `bits` bits per axis.
+  static Lattice covering(const Aabb& bounds, int bits);
+  // Nearest lattice index of p, clamped to [0, 2^bits - 1].
+  std::array<int64_t, 3> quantize(const Vec3& p) const;
+  Vec3 point(const std::array<int64_t, 3>& q) const;
+  // point(quantize(p)).
+  Vec3 snap(const Vec3& p) const { return point(quantize(p)); }
+  double max_error() const { return 0.5 * step; }  // per axis
+};
+
+struct CellCodecOptions {
+  CellCodec codec = CellCodec::Draco;
+  Lattice lattice;             // the Draco codec requires triangle vertices already on it (snap)
+  int draco_speed = 5;         // Draco encoding/decoding speed 0 (best compression) .. 10; at
+                               // 8 and up Draco predicts positions by plain deltas (+30% size)
+  int normal_bits = 10;        // Draco octahedral quantization of per-vertex shading normals
+                               // (2..30); they decode approximately, positions exactly
+};
+
+struct EncodedCell {
+  CellCodec codec = CellCodec::Raw;
+  std::vector<uint8_t> payload;
+  // The cell as a reader will decode it, in decoded primitive order (Draco reorders
+  // triangles; every triangle keeps its source and material). Anything stored beside the
+  // geometry that refers to primitive order must use this order.
+  Scene decoded;
+};
+
+// Encodes the primitives of `cell` (a Scene holding only one cell's primitives; materials,
+// lights and camera are ignored — they live in the store's model section).
+//
+// Raw: `decoded` is `cell` bit for bit (primitives, arrays and normals in input order; unused
+// quadric clip-plane slots come back as zero).
+// Draco: `decoded` holds the triangles in Draco's order (a face's corners may be rotated, its
+// orientation is kept), each with its source, material and (approximate) normals, then the
+// other primitives in input order. Triangles with two corners on the same lattice point are
+// dropped (Draco cannot hold them); other zero-area triangles are kept (the caller drops
+// those before, if it wants).
+//
+// InvalidArgument, naming the primitive, for a Draco triangle vertex not on options.lattice
+// (Lattice::snap), a lattice that does not fit (bits outside 1..30, non-finite origin or step),
+// a Draco cell spanning 2^24 or more lattice steps on an axis (Draco's encoder needs memory in
+// proportion), bad speed or normal bits, or a Scene whose primitives refer past their arrays.
+Result<EncodedCell> encode_cell(const Scene& cell, const CellCodecOptions& options);
+
+// Decodes a payload written by encode_cell into `out` (replacing what it held; left empty on
+// failure). Never crashes or over-allocates on damaged input — memory stays within a constant
+// times the payload size: Corruption with a message for anything inconsistent. `lattice` must
+// be the model's lattice (InvalidArgument if unusable; Corruption if its bits differ from the
+// page's); the raw codec ignores it.
+Status decode_cell(std::span<const uint8_t> payload, CellCodec codec, const Lattice& lattice,
+                   Scene& out);
+
+}  // namespace frontier

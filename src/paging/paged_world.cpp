@@ -1,0 +1,504 @@
+// PagedWorld: grafting paged-in store cells into one tree and one scene (see paged_world.h).
+#include "src/paging/paged_world.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/info.h>
+
+#include <algorithm>
+#include <thread>
+
+namespace frontier {
+
+namespace {
+
+constexpr uint64_t kMinCompressedShare = 1ull << 20;
+// Per world cell: owner_ here, the caster's marks and per-cell incidence cache.
+constexpr uint64_t kPerCellOverhead = sizeof(uint32_t) + sizeof(uint32_t) + 48;
+
+// Bytes of the world's arrays that a cell's scene and subtree occupy once grafted.
+uint64_t charge_of(const Scene& s, const KdTree& t) {
+  uint64_t b = s.prims.size() * sizeof(PrimRef) + s.triangles.size() * sizeof(Triangle) +
+               s.triangle_normals.size() * sizeof(std::array<Vec3, 3>) + s.spheres.size() * sizeof(Sphere) +
+               s.boxes.size() * sizeof(Box) + s.cones.size() * sizeof(Cone) + s.quadrics.size() * sizeof(Quadric);
+  b += t.nodes().size() * sizeof(KdTree::Node) + t.cells().size() * (sizeof(KdTree::Cell) + kPerCellOverhead) +
+       t.reference_count() * (sizeof(uint32_t) + sizeof(Aabb));
+  return b;
+}
+
+}  // namespace
+
+// Where a grafted cell's pieces live in the world's arrays (each a contiguous range: a graft
+// appends to every array at once, so ranges of later grafts lie after earlier ones).
+struct PagedWorld::Graft {
+  uint32_t cell = 0;                     // store cell
+  uint32_t node0 = 0, nodes = 0;         // tree nodes
+  uint32_t cell0 = 0, cells = 0;         // world cells
+  uint32_t ref0 = 0, refs = 0;           // references (and their bounds)
+  uint32_t prim0 = 0, prims = 0;         // scene.prims
+  std::array<uint32_t, 5> kind0{}, kinds{};  // per PrimKind array ranges
+  uint64_t bytes = 0;
+};
+
+struct PagedWorld::Decoded {
+  uint32_t cell = 0;
+  // Not decoded: the page left the cache between ready() and try_pin(), or the deadline came
+  // before its turn. Wanted again.
+  bool retry = false;
+  Status status;
+  Scene scene;
+  KdTree tree;
+  uint64_t bytes = 0;
+};
+
+PagedWorld::PagedWorld(const StoreModel& model, const PagedWorldOptions& options)
+    : model_(model), cell_build_(options.cell_build), budget_(options.budget_bytes) {
+  const uint64_t compressed = std::max(kMinCompressedShare, budget_ / 8);
+  decoded_budget_ = budget_ > compressed ? budget_ - compressed : 0;
+  source_ = std::make_unique<store::StorePageSource>(model.reader());
+  cache_ = std::make_unique<store::PageCache>(*source_, std::min(compressed, budget_), options.io_threads);
+
+  const StoreModelInfo& info = model.info();
+  scene_.materials = info.materials;
+  scene_.lights = info.lights;
+  scene_.camera = info.camera;
+  scene_.background = info.background;
+  scene_.input_primitives = static_cast<uint32_t>(info.input_primitives);
+
+  // The top tree with ropes; world cell c of the top tree is store cell c.
+  const auto& cells = model.cells();
+  tree_ = KdTree::top_only(model.nodes(), info.bounds);
+  leaf_node_.assign(cells.size(), 0);
+  for (size_t n = 0; n < model.nodes().size(); ++n) {
+    if (model.nodes()[n].is_leaf()) leaf_node_[model.nodes()[n].child] = static_cast<uint32_t>(n);
+  }
+  for (size_t c = 0; c < cells.size(); ++c) tree_.cells_[c].content = cells[c].content;
+  top_nodes_ = tree_.nodes_.size();
+  top_cells_ = tree_.cells_.size();
+  missing_.resize(top_cells_);
+  owner_.resize(top_cells_);
+  for (size_t c = 0; c < top_cells_; ++c) {
+    missing_[c] = cells[c].page != StoreCell::kNoPage ? 1 : 0;
+    owner_[c] = static_cast<uint32_t>(c);
+  }
+  slot_.assign(top_cells_, -1);
+  failed_.assign(top_cells_, 0);
+  last_touched_.assign(top_cells_, 0);
+  decoded_size_.assign(top_cells_, 0);
+  wanted_flag_ = std::make_unique<std::atomic<uint8_t>[]>(top_cells_);
+  for (size_t c = 0; c < top_cells_; ++c) wanted_flag_[c].store(0, std::memory_order_relaxed);
+
+  // The world's arrays never hold more than the decoded share: reserve what each could reach
+  // within it once (address space only: untouched pages cost no memory), so that growing never
+  // copies them. Capped, so that a huge --cache does not ask for absurd address space.
+  const uint64_t share = std::min<uint64_t>(decoded_budget_, uint64_t{16} << 30);
+  auto reserve = [&](auto& v, uint64_t bytes_per_item) {
+    v.reserve(v.size() + static_cast<size_t>(share / bytes_per_item) + 1);
+  };
+  const uint64_t per_cell = sizeof(KdTree::Cell) + kPerCellOverhead;
+  reserve(tree_.cells_, per_cell);
+  reserve(owner_, per_cell);
+  reserve(tree_.nodes_, per_cell / 2);  // a subtree has fewer than two nodes per cell
+  reserve(tree_.refs_, sizeof(uint32_t) + sizeof(Aabb));
+  reserve(tree_.ref_bounds_, sizeof(uint32_t) + sizeof(Aabb));
+  reserve(scene_.prims, sizeof(PrimRef) + sizeof(Sphere));  // the smallest primitive
+  reserve(scene_.triangles, sizeof(PrimRef) + sizeof(Triangle));
+}
+
+PagedWorld::~PagedWorld() = default;
+
+void PagedWorld::want(int32_t cell) {
+  const auto c = static_cast<size_t>(cell);
+  if (c >= top_cells_ || wanted_flag_[c].exchange(1, std::memory_order_acq_rel) != 0) return;
+  std::lock_guard<std::mutex> lock(wanted_mutex_);
+  wanted_.push_back(static_cast<uint32_t>(c));
+  cache_->request(model_.cells()[c].page);
+}
+
+size_t PagedWorld::pending() const {
+  std::lock_guard<std::mutex> lock(wanted_mutex_);
+  return wanted_.size();
+}
+
+void PagedWorld::decode(uint32_t cell, Decoded& out) const {
+  out.cell = cell;
+  const uint64_t page = model_.cells()[cell].page;
+  std::optional<store::Pin> pin = cache_->try_pin(page);
+  if (!pin) {
+    if (cache_->failed(page)) {
+      auto r = cache_->pin(page);
+      out.status = r ? Status::io_error("page vanished") : r.status();
+    } else {
+      out.retry = true;
+    }
+    return;
+  }
+  out.status = model_.decode_page(cell, pin->codec(), pin->bytes(), out.scene);
+  pin->reset();
+  if (!out.status) return;
+  KdBuildOptions options = cell_build_;
+  options.root = model_.cells()[cell].bounds;
+  out.tree = KdTree::build(out.scene, options);
+  out.bytes = charge_of(out.scene, out.tree);
+}
+
+bool PagedWorld::sync(std::chrono::steady_clock::time_point deadline) { return sync_impl(deadline, false); }
+
+bool PagedWorld::sync_evicting() { return sync_impl(std::chrono::steady_clock::time_point::max(), true); }
+
+bool PagedWorld::evict_for(uint64_t bytes, const std::vector<uint32_t>& keep) {
+  if (bytes > decoded_budget_) return false;
+  if (decoded_bytes_ + garbage_bytes_ + bytes <= decoded_budget_) return true;
+  std::vector<uint32_t> order;
+  for (const Graft& g : live_) {
+    if (std::find(keep.begin(), keep.end(), g.cell) == keep.end()) order.push_back(g.cell);
+  }
+  std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
+    return last_touched_[a] != last_touched_[b] ? last_touched_[a] < last_touched_[b] : a < b;
+  });
+  for (const uint32_t c : order) {
+    if (decoded_bytes_ + bytes <= decoded_budget_) break;
+    unlink(c);
+  }
+  if (decoded_bytes_ + bytes > decoded_budget_) return false;
+  if (decoded_bytes_ + garbage_bytes_ + bytes > decoded_budget_) compact();
+  return true;
+}
+
+bool PagedWorld::sync_impl(std::chrono::steady_clock::time_point deadline, bool evict) {
+  const auto start = std::chrono::steady_clock::now();
+  std::vector<uint32_t> ready;
+  {
+    std::lock_guard<std::mutex> lock(wanted_mutex_);
+    std::vector<uint32_t> waiting;
+    for (const uint32_t c : wanted_) {
+      const uint64_t page = model_.cells()[c].page;
+      if (cache_->ready(page) || cache_->failed(page)) {
+        ready.push_back(c);
+      } else {
+        cache_->request(page);  // no-op while queued or loading; again if it was evicted unread
+        waiting.push_back(c);
+      }
+    }
+    wanted_.swap(waiting);
+  }
+  if (ready.empty()) return false;
+  bool changed = false;
+  std::vector<uint32_t> later, grafted;
+  const size_t batch = std::max<size_t>(4, 2 * static_cast<size_t>(tbb::info::default_concurrency()));
+  bool full = false;
+  for (size_t b = 0; b < ready.size(); b += batch) {
+    if (full || std::chrono::steady_clock::now() >= deadline) {
+      later.insert(later.end(), ready.begin() + static_cast<std::ptrdiff_t>(b), ready.end());
+      break;
+    }
+    const size_t e = std::min(ready.size(), b + batch);
+    std::vector<Decoded> decoded(e - b);
+    // One page per task, each starting only before the deadline: a frame overruns its paging
+    // share by at most one page's decode and build, not by a whole batch.
+    tbb::parallel_for(
+        tbb::blocked_range<size_t>(0, decoded.size(), 1), [&](const tbb::blocked_range<size_t>& range) {
+          for (size_t i = range.begin(); i < range.end(); ++i) {
+            if (i > 0 && std::chrono::steady_clock::now() >= deadline) {
+              decoded[i].cell = ready[b + i];
+              decoded[i].retry = true;
+            } else {
+              decode(ready[b + i], decoded[i]);
+            }
+          }
+        });
+    for (Decoded& d : decoded) {
+      if (d.retry) {
+        later.push_back(d.cell);
+      } else if (!d.status) {
+        // Drawn as missing from now on: an empty cell the walk goes through.
+        failed_[d.cell] = 1;
+        missing_[d.cell] = 0;
+        ++counters_.page_errors;
+        changed = true;
+      } else if (decoded_bytes_ + garbage_bytes_ + d.bytes <= decoded_budget_ ||
+                 (evict && evict_for(d.bytes, grafted))) {
+        graft(d);
+        grafted.push_back(d.cell);
+        changed = true;
+      } else if (evict && d.bytes <= decoded_budget_) {
+        // Full of cells grafted by this call, which the caller has not drawn yet: the rest
+        // comes in with the next call.
+        later.push_back(d.cell);
+        full = true;
+      } else {
+        // No room while this frame holds everything else: not again in this frame (the flag
+        // stays set), wanted again from the next one.
+        ++counters_.cells_dropped;
+        dropped_.push_back(d.cell);
+      }
+    }
+  }
+  if (!later.empty()) {
+    std::lock_guard<std::mutex> lock(wanted_mutex_);
+    wanted_.insert(wanted_.end(), later.begin(), later.end());
+  }
+  counters_.decode_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return changed;
+}
+
+double PagedWorld::wait_for_pages(std::chrono::steady_clock::time_point deadline) {
+  const auto start = std::chrono::steady_clock::now();
+  while (std::chrono::steady_clock::now() < deadline) {
+    {
+      std::lock_guard<std::mutex> lock(wanted_mutex_);
+      if (wanted_.empty()) break;
+      bool any = false;
+      for (const uint32_t c : wanted_) {
+        const uint64_t page = model_.cells()[c].page;
+        if (cache_->ready(page) || cache_->failed(page)) {
+          any = true;
+          break;
+        }
+      }
+      if (any) break;
+    }
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  }
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+void PagedWorld::graft(Decoded& d) {
+  const KdTree& sub = d.tree;
+  Graft g;
+  g.cell = d.cell;
+  g.node0 = static_cast<uint32_t>(tree_.nodes_.size());
+  g.nodes = static_cast<uint32_t>(sub.nodes_.size());
+  g.cell0 = static_cast<uint32_t>(tree_.cells_.size());
+  g.cells = static_cast<uint32_t>(sub.cells_.size());
+  g.ref0 = static_cast<uint32_t>(tree_.refs_.size());
+  g.refs = static_cast<uint32_t>(sub.refs_.size());
+  g.prim0 = static_cast<uint32_t>(scene_.prims.size());
+  g.prims = static_cast<uint32_t>(d.scene.prims.size());
+  g.kind0 = {uint32_t(scene_.triangles.size()), uint32_t(scene_.spheres.size()), uint32_t(scene_.boxes.size()),
+             uint32_t(scene_.cones.size()), uint32_t(scene_.quadrics.size())};
+  g.bytes = d.bytes;
+  for (uint32_t i = 0; i < d.scene.size(); ++i) scene_.add_from(d.scene, i);
+  g.kinds = {uint32_t(scene_.triangles.size()) - g.kind0[0], uint32_t(scene_.spheres.size()) - g.kind0[1],
+             uint32_t(scene_.boxes.size()) - g.kind0[2], uint32_t(scene_.cones.size()) - g.kind0[3],
+             uint32_t(scene_.quadrics.size()) - g.kind0[4]};
+
+  const KdTree::Cell placeholder = tree_.cells_[d.cell];
+  for (KdTree::Node n : sub.nodes_) {
+    n.child += n.is_leaf() ? g.cell0 : g.node0;
+    tree_.nodes_.push_back(n);
+  }
+  for (KdTree::Cell c : sub.cells_) {
+    c.first += g.ref0;
+    for (int f = 0; f < 6; ++f) {
+      c.rope[f] = c.rope[f] == KdTree::kNone ? placeholder.rope[f] : c.rope[f] + static_cast<int32_t>(g.node0);
+    }
+    tree_.cells_.push_back(c);
+    owner_.push_back(d.cell);
+  }
+  for (uint32_t r : sub.refs_) tree_.refs_.push_back(r + g.prim0);
+  tree_.ref_bounds_.insert(tree_.ref_bounds_.end(), sub.ref_bounds_.begin(), sub.ref_bounds_.end());
+  tree_.depth_ = std::max<uint32_t>(tree_.depth_, model_.depth() + sub.depth_);
+
+  KdTree::Node& leaf = tree_.nodes_[leaf_node_[d.cell]];
+  leaf.axis_or_leaf = 4;
+  leaf.child = g.node0;
+  missing_[d.cell] = 0;
+  slot_[d.cell] = static_cast<int32_t>(live_.size());
+  live_.push_back(g);
+  last_touched_[d.cell] = frame_;
+  decoded_size_[d.cell] = g.bytes;
+  decoded_bytes_ += g.bytes;
+  ++counters_.cells_paged_in;
+  counters_.primitives_paged_in += g.prims;
+}
+
+void PagedWorld::unlink(uint32_t cell) {
+  const int32_t s = slot_[cell];
+  if (s < 0) return;
+  const Graft g = live_[size_t(s)];
+  KdTree::Node& leaf = tree_.nodes_[leaf_node_[cell]];
+  leaf.axis_or_leaf = 3;
+  leaf.child = cell;
+  missing_[cell] = 1;
+  wanted_flag_[cell].store(0, std::memory_order_release);
+  // Keep live_ dense: move the last graft into the hole.
+  live_[size_t(s)] = live_.back();
+  slot_[live_[size_t(s)].cell] = s;
+  live_.pop_back();
+  slot_[cell] = -1;
+  decoded_bytes_ -= g.bytes;
+  garbage_bytes_ += g.bytes;
+  ++counters_.cells_evicted;
+}
+
+void PagedWorld::note_touched(const CellMarks& marks) {
+  const size_t n = std::min(marks.size(), owner_.size());
+  for (size_t c = 0; c < n; ++c) {
+    if (marks.marked(static_cast<int32_t>(c))) last_touched_[owner_[c]] = frame_;
+  }
+}
+
+std::vector<uint32_t> PagedWorld::touched_store_cells(const CellMarks& marks) const {
+  std::vector<uint8_t> seen(top_cells_, 0);
+  std::vector<uint32_t> out;
+  const size_t n = std::min(marks.size(), owner_.size());
+  for (size_t c = 0; c < n; ++c) {
+    if (!marks.marked(static_cast<int32_t>(c))) continue;
+    const uint32_t s = owner_[c];
+    if (!seen[s]) {
+      seen[s] = 1;
+      out.push_back(s);
+    }
+  }
+  return out;
+}
+
+uint64_t PagedWorld::end_frame(const CellMarks& marks) {
+  note_touched(marks);
+  uint64_t touched = 0;
+  for (size_t c = 0; c < top_cells_; ++c) touched += last_touched_[c] == frame_ ? 1 : 0;
+  touched_bytes_ = 0;
+  for (const Graft& g : live_) touched_bytes_ += last_touched_[g.cell] == frame_ ? g.bytes : 0;
+  return touched;
+}
+
+std::vector<uint32_t> PagedWorld::touched_this_frame() const {
+  std::vector<uint32_t> out;
+  for (uint32_t c = 0; c < top_cells_; ++c) {
+    if (last_touched_[c] == frame_) out.push_back(c);
+  }
+  return out;
+}
+
+void PagedWorld::forget_dropped() {
+  for (const uint32_t c : dropped_) wanted_flag_[c].store(0, std::memory_order_release);
+  dropped_.clear();
+}
+
+void PagedWorld::begin_frame(CellMarks& marks) {
+  ++frame_;
+  forget_dropped();
+  // Keep a quarter of the decoded share free for the cells this frame pages in: when live
+  // cells and garbage fill more than three quarters, unlink the least recently touched down
+  // to half and compact.
+  if (decoded_bytes_ + garbage_bytes_ > decoded_budget_ / 4 * 3) {
+    std::vector<uint32_t> order;
+    order.reserve(live_.size());
+    for (const Graft& g : live_) order.push_back(g.cell);
+    std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
+      return last_touched_[a] != last_touched_[b] ? last_touched_[a] < last_touched_[b] : a < b;
+    });
+    for (const uint32_t c : order) {
+      if (decoded_bytes_ <= decoded_budget_ / 2) break;
+      unlink(c);
+    }
+  }
+  if (garbage_bytes_ > 0 && decoded_bytes_ + garbage_bytes_ > decoded_budget_ / 4 * 3) compact();
+  marks.resize(tree_.cells_.size());
+}
+
+bool PagedWorld::reclaim_untouched(CellMarks& marks) {
+  note_touched(marks);
+  std::vector<uint32_t> stale;
+  for (const Graft& g : live_) {
+    if (last_touched_[g.cell] != frame_) stale.push_back(g.cell);
+  }
+  if (stale.empty() && garbage_bytes_ == 0) return false;
+  for (const uint32_t c : stale) unlink(c);
+  compact();
+  forget_dropped();
+  marks.resize(tree_.cells_.size());
+  return true;
+}
+
+// Slides every live graft down over the garbage, in array order, in place (a graft's ranges
+// only ever move to lower indices), and renumbers what points into them.
+void PagedWorld::compact() {
+  std::vector<size_t> order(live_.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return live_[a].prim0 < live_[b].prim0; });
+  uint32_t node_at = static_cast<uint32_t>(top_nodes_), cell_at = static_cast<uint32_t>(top_cells_), ref_at = 0,
+           prim_at = 0;
+  std::array<uint32_t, 5> kind_at{};
+  auto slide = [](auto& v, uint32_t from, uint32_t to, uint32_t count) {
+    if (from != to) std::copy(v.begin() + from, v.begin() + from + count, v.begin() + to);
+  };
+  for (const size_t i : order) {
+    Graft& g = live_[i];
+    const int32_t node_delta = static_cast<int32_t>(node_at) - static_cast<int32_t>(g.node0);
+    const int64_t cell_delta = int64_t(cell_at) - int64_t(g.cell0), ref_delta = int64_t(ref_at) - int64_t(g.ref0),
+                  prim_delta = int64_t(prim_at) - int64_t(g.prim0);
+    std::array<int64_t, 5> kind_delta;
+    for (size_t k = 0; k < 5; ++k) kind_delta[k] = int64_t(kind_at[k]) - int64_t(g.kind0[k]);
+
+    slide(tree_.nodes_, g.node0, node_at, g.nodes);
+    for (uint32_t n = node_at; n < node_at + g.nodes; ++n) {
+      KdTree::Node& node = tree_.nodes_[n];
+      node.child = static_cast<uint32_t>(int64_t(node.child) + (node.is_leaf() ? cell_delta : node_delta));
+    }
+    slide(tree_.cells_, g.cell0, cell_at, g.cells);
+    slide(owner_, g.cell0, cell_at, g.cells);
+    for (uint32_t c = cell_at; c < cell_at + g.cells; ++c) {
+      KdTree::Cell& cell = tree_.cells_[c];
+      cell.first = static_cast<uint32_t>(int64_t(cell.first) + ref_delta);
+      for (int32_t& rope : cell.rope) {
+        if (rope != KdTree::kNone && size_t(rope) >= top_nodes_) rope += node_delta;
+      }
+    }
+    slide(tree_.refs_, g.ref0, ref_at, g.refs);
+    slide(tree_.ref_bounds_, g.ref0, ref_at, g.refs);
+    for (uint32_t r = ref_at; r < ref_at + g.refs; ++r) {
+      tree_.refs_[r] = static_cast<uint32_t>(int64_t(tree_.refs_[r]) + prim_delta);
+    }
+    slide(scene_.prims, g.prim0, prim_at, g.prims);
+    for (uint32_t p = prim_at; p < prim_at + g.prims; ++p) {
+      PrimRef& ref = scene_.prims[p];
+      ref.index = static_cast<uint32_t>(int64_t(ref.index) + kind_delta[size_t(ref.kind)]);
+    }
+    slide(scene_.triangles, g.kind0[0], kind_at[0], g.kinds[0]);
+    slide(scene_.spheres, g.kind0[1], kind_at[1], g.kinds[1]);
+    slide(scene_.boxes, g.kind0[2], kind_at[2], g.kinds[2]);
+    slide(scene_.cones, g.kind0[3], kind_at[3], g.kinds[3]);
+    slide(scene_.quadrics, g.kind0[4], kind_at[4], g.kinds[4]);
+    if (!scene_.triangle_normals.empty()) {
+      // Normals are either absent or one per triangle: they move with the triangles.
+      slide(scene_.triangle_normals, g.kind0[0], kind_at[0], g.kinds[0]);
+    }
+    tree_.nodes_[leaf_node_[g.cell]].child = node_at;
+    g.node0 = node_at;
+    g.cell0 = cell_at;
+    g.ref0 = ref_at;
+    g.prim0 = prim_at;
+    g.kind0 = kind_at;
+    node_at += g.nodes;
+    cell_at += g.cells;
+    ref_at += g.refs;
+    prim_at += g.prims;
+    for (size_t k = 0; k < 5; ++k) kind_at[k] += g.kinds[k];
+  }
+  tree_.nodes_.resize(node_at);
+  tree_.cells_.resize(cell_at);
+  owner_.resize(cell_at);
+  tree_.refs_.resize(ref_at);
+  tree_.ref_bounds_.resize(ref_at);
+  scene_.prims.resize(prim_at);
+  scene_.triangles.resize(kind_at[0]);
+  scene_.spheres.resize(kind_at[1]);
+  scene_.boxes.resize(kind_at[2]);
+  scene_.cones.resize(kind_at[3]);
+  scene_.quadrics.resize(kind_at[4]);
+  if (!scene_.triangle_normals.empty()) scene_.triangle_normals.resize(kind_at[0]);
+  garbage_bytes_ = 0;
+  ++generation_;
+}
+
+size_t PagedWorld::resident_cells() const { return live_.size(); }
+
+PagingCounters PagedWorld::take_counters() {
+  PagingCounters c = counters_;
+  counters_ = {};
+  return c;
+}
+
+}  // namespace frontier

@@ -1,0 +1,185 @@
+// PagedWorld: the part of a store that is in memory right now, held as one Scene and one KdTree
+// that the in-memory engine (frustum casting, shading) renders directly.
+//
+// The store's top tree is resident for the whole session; its cell indices are the store's.
+// Each top cell is, at any moment, in one of four states:
+//   empty     no page: an ordinary empty cell, never wanted;
+//   missing   its page is not in memory: the cell is a placeholder without references, and
+//             missing() says so, so the frustum caster parks work that reaches it and want()s it;
+//   resident  its page read (through the store's PageCache), decoded, checked and refined by the
+//             SAH builder into a subtree inside the cell's exact region, and *grafted*: the top
+//             leaf becomes a link node to the subtree root, the subtree's nodes, cells, references
+//             and primitives are appended to the world's arrays, and its ropes that left the
+//             subtree are replaced by the placeholder's ropes into the top tree;
+//   failed    its page could not be read or decoded (checksum, codec, invariants): the cell stays
+//             empty for the rest of the session ("drawn as missing"), counted in page_errors.
+//
+// Memory, one budget for everything paged: the compressed pages the PageCache holds (an eighth
+// of the budget, at least 1 MiB) plus the decoded, grafted cells (the rest). resident_bytes()
+// is their sum and stays within the budget: before a cell is grafted, cells no frame touched
+// since the oldest are unlinked (LRU by the frame that last touched them); cells touched in the
+// current frame are never evicted, so when the current view alone needs more than the budget
+// the newcomer is dropped (it stays missing; the frame degrades to fewer samples) instead.
+// Unlinked subtrees leave garbage in the arrays; compact() at a frame boundary reclaims it.
+//
+// Threads: missing() and want() are called by render workers while a frame slice runs; every
+// other call is made by the owner between slices (no slice running). I/O runs on the cache's
+// loader thread; decoding and subtree builds run in parallel inside sync().
+#pragma once
+
+#include "src/engine/frustum.h"
+#include "src/engine/kdtree.h"
+#include "src/core/sample_buffer.h"
+#include "src/core/scene.h"
+#include "src/paging/store_model.h"
+#include "store/page_cache.h"
+#include "store/store_page_source.h"
+
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <vector>
+
+namespace frontier {
+
+struct PagedWorldOptions {
+  uint64_t budget_bytes = 512ull << 20;  // compressed + decoded
+  int io_threads = 1;                    // PageCache loader threads
+  KdBuildOptions cell_build;             // how a paged-in cell is refined (max/min cell size)
+};
+
+// What paging did since the last take_counters().
+struct PagingCounters {
+  uint64_t cells_paged_in = 0;  // cells grafted
+  uint64_t cells_evicted = 0;   // cells unlinked to make room
+  uint64_t cells_dropped = 0;   // decoded cells that did not fit (everything else touched this frame)
+  uint64_t page_errors = 0;     // pages that failed (each at most once)
+  uint64_t primitives_paged_in = 0;
+  double decode_ms = 0.0;       // wall time of decode + subtree build + graft in sync()
+};
+
+class PagedWorld final : public CellGate {
+ public:
+  // REQUIRES: `model` outlives the world.
+  PagedWorld(const StoreModel& model, const PagedWorldOptions& options);
+  ~PagedWorld() override;
+  PagedWorld(const PagedWorld&) = delete;
+  PagedWorld& operator=(const PagedWorld&) = delete;
+
+  const Scene& scene() const { return scene_; }
+  const KdTree& tree() const { return tree_; }
+  const StoreModel& model() const { return model_; }
+
+  // CellGate (render workers).
+  // Only top cells can be missing; grafted cells are numbered after them.
+  bool missing(int32_t cell) const override { return size_t(cell) < missing_.size() && missing_[size_t(cell)] != 0; }
+  void want(int32_t cell) override;
+
+  // Number of cells wanted whose pages have not been grafted, failed or dropped yet.
+  size_t pending() const;
+  // Grafts what has arrived: wanted cells whose pages the cache holds (or that failed) are
+  // decoded and refined in parallel, then grafted, evicting as described above. Stops starting
+  // new decodes at `deadline`. Returns true when the tree changed (the caster must be told).
+  bool sync(std::chrono::steady_clock::time_point deadline = std::chrono::steady_clock::time_point::max());
+  // sync() for the culling classes (src/raster/visibility.h), which hold no world cell between calls:
+  // when a decoded cell does not fit, cells grafted before this call — least recently touched
+  // first, this frame's included — are unlinked (and the arrays compacted) to make room. Only a
+  // cell larger than the whole decoded share is dropped. Compaction renumbers world cells,
+  // primitives and subtree nodes (top nodes keep theirs): generation() counts it.
+  bool sync_evicting();
+  uint64_t generation() const { return generation_; }
+  // Records that the current frame used store cell `c` (LRU), for renderers without CellMarks.
+  void touch(uint32_t store_cell) { last_touched_[store_cell] = frame_; }
+  // Bytes store cell c took decoded and refined when it was last paged in (0: never was).
+  uint64_t decoded_size(uint32_t store_cell) const { return decoded_size_[store_cell]; }
+  // Store cells touched (or paged in) since the last begin_frame().
+  std::vector<uint32_t> touched_this_frame() const;
+  // Blocks until at least one wanted page is readable or failed (or nothing is pending), or
+  // until `deadline`. Returns the milliseconds waited (stall time).
+  double wait_for_pages(std::chrono::steady_clock::time_point deadline);
+
+  // Frame bookkeeping: call begin_frame() before the caster's begin() (it may compact, which
+  // renumbers cells; `marks` must be the caster's marks, they are resized), and end_frame()
+  // after the frame's last slice: it records which top cells the frame touched (for the LRU)
+  // and returns how many distinct store cells that is.
+  void begin_frame(CellMarks& marks);
+  // When the current image cannot finish because what it needs does not fit beside what is
+  // resident: unlinks every cell the image has not touched and compacts. Returns false (and
+  // changes nothing) when there is nothing to reclaim; otherwise cells are renumbered and the
+  // caller must restart the image.
+  bool reclaim_untouched(CellMarks& marks);
+  uint64_t end_frame(const CellMarks& marks);
+  // Store cells marked in `marks` (each grafted subtree counts as its store cell).
+  std::vector<uint32_t> touched_store_cells(const CellMarks& marks) const;
+  // The store cell a world cell belongs to.
+  uint32_t store_cell(int32_t world_cell) const { return owner_[size_t(world_cell)]; }
+  bool resident(uint32_t store_cell) const { return slot_[store_cell] >= 0; }
+  // Asked for (by want()) and not grafted, failed or dropped since.
+  bool wanted(uint32_t store_cell) const {
+    return wanted_flag_[store_cell].load(std::memory_order_acquire) != 0 && slot_[store_cell] < 0 &&
+           failed_[store_cell] == 0;
+  }
+
+  PagingCounters take_counters();
+  uint64_t budget_bytes() const { return budget_; }
+  uint64_t decoded_bytes() const { return decoded_bytes_; }
+  // Decoded bytes of the cells the frame touched, as of the last end_frame().
+  uint64_t touched_bytes() const { return touched_bytes_; }
+  uint64_t garbage_bytes() const { return garbage_bytes_; }
+  // Compressed pages held by the cache plus decoded cells: never above budget_bytes() after
+  // sync() returns (the cache's own rule: see store/page_cache.h).
+  uint64_t resident_bytes() const { return cache_->resident_bytes() + decoded_bytes_; }
+  uint64_t pinned_bytes() const { return cache_->pinned_bytes(); }
+  store::PageCacheStats cache_stats() const { return cache_->stats(); }
+  size_t resident_cells() const;
+  // Rebuilds the arrays without garbage. Renumbers world cells: only between frames.
+  void compact();
+
+ private:
+  struct Graft;
+  struct Decoded;
+  void decode(uint32_t cell, Decoded& out) const;
+  bool sync_impl(std::chrono::steady_clock::time_point deadline, bool evict);
+  // Unlinks live cells other than `keep` (LRU first) and compacts until `bytes` more fit.
+  bool evict_for(uint64_t bytes, const std::vector<uint32_t>& keep);
+  void graft(Decoded& d);
+  void unlink(uint32_t cell);
+  void note_touched(const CellMarks& marks);
+  void forget_dropped();
+
+  const StoreModel& model_;
+  std::unique_ptr<store::StorePageSource> source_;
+  std::unique_ptr<store::PageCache> cache_;
+  KdBuildOptions cell_build_;
+  uint64_t budget_ = 0;         // total
+  uint64_t decoded_budget_ = 0; // share of the decoded cells
+  uint64_t decoded_bytes_ = 0;
+  uint64_t garbage_bytes_ = 0;
+  uint64_t touched_bytes_ = 0;
+  std::vector<uint32_t> dropped_;        // store cells dropped for lack of room this frame
+
+  Scene scene_;
+  KdTree tree_;
+  size_t top_nodes_ = 0;
+  size_t top_cells_ = 0;
+  std::vector<uint32_t> leaf_node_;      // store cell -> its top leaf node
+  std::vector<uint8_t> missing_;         // per top cell
+  std::vector<uint32_t> owner_;          // world cell -> store cell
+  std::vector<int32_t> slot_;            // store cell -> index in live_, or -1
+  std::vector<Graft> live_;
+  std::vector<uint8_t> failed_;          // store cell
+  std::vector<uint64_t> last_touched_;   // store cell -> frame
+  std::vector<uint64_t> decoded_size_;   // store cell -> bytes when last grafted
+  uint64_t frame_ = 1;
+  uint64_t generation_ = 0;              // compactions so far
+
+  std::unique_ptr<std::atomic<uint8_t>[]> wanted_flag_;  // store cell: in wanted_ already
+  mutable std::mutex wanted_mutex_;
+  std::vector<uint32_t> wanted_;
+
+  PagingCounters counters_;
+};
+
+}  // namespace frontier

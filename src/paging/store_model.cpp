@@ -1,0 +1,384 @@
+// StoreModel: the model, tree and cells sections of a store, and cell pages decoded on demand.
+#include "src/paging/store_model.h"
+
+#include "store/page_file.h"
+#include "src/core/byte_io.h"
+#include "store/page_format.h"
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include <bit>
+#include <cmath>
+#include <cstring>
+
+namespace frontier {
+namespace {
+
+using store::get_u32;
+using store::get_u64;
+using store::put_u32;
+using store::put_u64;
+
+constexpr size_t kNodeBytes = 16;   // f64 split, u32 axis_or_leaf, u32 child
+constexpr size_t kCellBytes = 112;  // 12 f64 bounds/content, u32 references, u32 0, u64 page
+constexpr int kModelVersion = 1;
+
+
+nlohmann::json vec_json(const Vec3& v) { return nlohmann::json::array({v.x, v.y, v.z}); }
+Vec3 json_vec(const nlohmann::json& j) {
+  if (!j.is_array() || j.size() != 3) throw std::runtime_error("expected [x, y, z]");
+  return {j.at(0).get<double>(), j.at(1).get<double>(), j.at(2).get<double>()};
+}
+
+bool finite(const Aabb& b) {
+  for (int a = 0; a < 3; ++a) {
+    if (!std::isfinite(b.lo[a]) || !std::isfinite(b.hi[a])) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+std::vector<uint8_t> StoreModelInfo::to_bytes() const {
+  nlohmann::json j;
+  j["version"] = kModelVersion;
+  j["codec"] = codec == CellCodec::Draco ? "draco" : "raw";
+  j["lattice"] = {{"origin", vec_json(lattice.origin)}, {"step", lattice.step}, {"bits", lattice.bits}};
+  j["bounds"] = {{"lo", vec_json(bounds.lo)}, {"hi", vec_json(bounds.hi)}};
+  j["input_primitives"] = input_primitives;
+  j["primitives"] = primitives;
+  j["references"] = references;
+  j["triangles"] = triangles;
+  j["degenerate_dropped"] = degenerate_dropped;
+  j["cell_prims"] = cell_prims;
+  j["inputs"] = inputs;
+  auto& mats = j["materials"] = nlohmann::json::array();
+  for (const Material& m : materials) {
+    mats.push_back({{"color", vec_json(m.color)}, {"kd", m.kd}, {"ks", m.ks}, {"shine", m.shine},
+                    {"transmittance", m.transmittance}, {"ior", m.ior}});
+  }
+  auto& ls = j["lights"] = nlohmann::json::array();
+  for (const PointLight& l : lights) ls.push_back({{"position", vec_json(l.position)}, {"color", vec_json(l.color)}});
+  if (camera) {
+    const Camera& c = *camera;
+    j["camera"] = {{"eye", vec_json(c.eye)}, {"look_at", vec_json(c.look_at)}, {"up", vec_json(c.up)},
+                   {"vfov_deg", c.vfov_deg}, {"near", c.near}, {"width", c.width}, {"height", c.height}};
+  }
+  j["background"] = vec_json(background);
+  j["walkable"] = walkable;
+  j["sdf_voxel"] = sdf_voxel;
+  j["walk_radius"] = walk_radius;
+  const std::string text = j.dump(1);
+  return {text.begin(), text.end()};
+}
+
+Result<StoreModelInfo> StoreModelInfo::from_bytes(std::span<const uint8_t> bytes, const std::string& where) {
+  StoreModelInfo info;
+  try {
+    const auto j = nlohmann::json::parse(bytes.begin(), bytes.end());
+    const int version = j.at("version").get<int>();
+    if (version > kModelVersion) {
+      return Status::unsupported(fmt::format("{}: model section version {} is newer than this reader ({})", where,
+                                             version, kModelVersion));
+    }
+    const std::string codec = j.at("codec").get<std::string>();
+    if (codec == "draco") {
+      info.codec = CellCodec::Draco;
+    } else if (codec == "raw") {
+      info.codec = CellCodec::Raw;
+    } else {
+      return Status::unsupported(fmt::format("{}: unknown codec '{}'", where, codec));
+    }
+    const auto& lat = j.at("lattice");
+    info.lattice.origin = json_vec(lat.at("origin"));
+    info.lattice.step = lat.at("step").get<double>();
+    info.lattice.bits = lat.at("bits").get<int>();
+    if (!(info.lattice.step > 0.0) || !std::isfinite(info.lattice.step) || info.lattice.bits < 1 ||
+        info.lattice.bits > 30) {
+      return Status::corruption(fmt::format("{}: model section: impossible lattice", where));
+    }
+    info.bounds = Aabb(json_vec(j.at("bounds").at("lo")), json_vec(j.at("bounds").at("hi")));
+    info.input_primitives = j.at("input_primitives").get<uint64_t>();
+    info.primitives = j.at("primitives").get<uint64_t>();
+    info.references = j.at("references").get<uint64_t>();
+    info.triangles = j.at("triangles").get<uint64_t>();
+    info.degenerate_dropped = j.at("degenerate_dropped").get<uint64_t>();
+    info.cell_prims = j.at("cell_prims").get<uint32_t>();
+    info.inputs = j.at("inputs").get<std::vector<std::string>>();
+    for (const auto& m : j.at("materials")) {
+      Material mat;
+      mat.color = json_vec(m.at("color"));
+      mat.kd = m.at("kd").get<double>();
+      mat.ks = m.at("ks").get<double>();
+      mat.shine = m.at("shine").get<double>();
+      mat.transmittance = m.at("transmittance").get<double>();
+      mat.ior = m.at("ior").get<double>();
+      info.materials.push_back(mat);
+    }
+    for (const auto& l : j.at("lights")) info.lights.push_back({json_vec(l.at("position")), json_vec(l.at("color"))});
+    if (j.contains("camera")) {
+      const auto& c = j.at("camera");
+      Camera cam;
+      cam.eye = json_vec(c.at("eye"));
+      cam.look_at = json_vec(c.at("look_at"));
+      cam.up = json_vec(c.at("up"));
+      cam.vfov_deg = c.at("vfov_deg").get<double>();
+      cam.near = c.at("near").get<double>();
+      cam.width = c.at("width").get<int>();
+      cam.height = c.at("height").get<int>();
+      info.camera = cam;
+    }
+    info.background = json_vec(j.at("background"));
+    info.walkable = j.at("walkable").get<bool>();
+    info.sdf_voxel = j.at("sdf_voxel").get<double>();
+    info.walk_radius = j.at("walk_radius").get<double>();
+  } catch (const std::exception& e) {
+    return Status::corruption(fmt::format("{}: model section: {}", where, e.what()));
+  }
+  if (info.materials.empty()) return Status::corruption(fmt::format("{}: model section: no materials", where));
+  if (info.bounds.empty() || !finite(info.bounds)) {
+    return Status::corruption(fmt::format("{}: model section: bad bounds", where));
+  }
+  return info;
+}
+
+std::vector<uint8_t> encode_tree(const std::vector<KdTree::Node>& nodes) {
+  std::vector<uint8_t> out;
+  out.reserve(8 + kNodeBytes * nodes.size());
+  put_u64(out, nodes.size());
+  for (const KdTree::Node& n : nodes) {
+    put_f64(out, n.split);
+    put_u32(out, n.axis_or_leaf);
+    put_u32(out, n.child);
+  }
+  return out;
+}
+
+std::vector<uint8_t> encode_cells(const std::vector<StoreCell>& cells) {
+  std::vector<uint8_t> out;
+  out.reserve(8 + kCellBytes * cells.size());
+  put_u64(out, cells.size());
+  for (const StoreCell& c : cells) {
+    put_vec(out, c.bounds.lo);
+    put_vec(out, c.bounds.hi);
+    put_vec(out, c.content.lo);
+    put_vec(out, c.content.hi);
+    put_u32(out, c.references);
+    put_u32(out, 0);
+    put_u64(out, c.page);
+  }
+  return out;
+}
+
+Result<std::unique_ptr<StoreModel>> StoreModel::open(const std::string& path) {
+  store::PosixFileSystem fs;
+  auto reader = store::StoreReader::open(fs, path);
+  if (!reader) return reader.status();
+  return open(std::move(*reader));
+}
+
+Result<std::unique_ptr<StoreModel>> StoreModel::open(std::unique_ptr<store::StoreReader> reader) {
+  std::unique_ptr<StoreModel> model(new StoreModel());
+  model->reader_ = std::move(reader);
+  if (Status s = model->parse(); !s) return s;
+  return model;
+}
+
+Status StoreModel::parse() {
+  const std::string& name = reader_->name();
+  auto section = [&](std::string_view which) -> Result<std::vector<uint8_t>> {
+    auto bytes = reader_->read_section(which);
+    if (!bytes && bytes.status().code() == Status::Code::NotFound) {
+      return Status::corruption(fmt::format("{}: no '{}' section (not a model store?)", name, which));
+    }
+    return bytes;
+  };
+  auto model_bytes = section(kModelSection);
+  if (!model_bytes) return model_bytes.status();
+  auto info = StoreModelInfo::from_bytes(*model_bytes, name);
+  if (!info) return info.status();
+  info_ = std::move(*info);
+
+  auto tree_bytes = section(kTreeSection);
+  if (!tree_bytes) return tree_bytes.status();
+  const std::vector<uint8_t>& tb = *tree_bytes;
+  if (tb.size() < 8 || (tb.size() - 8) % kNodeBytes != 0 || get_u64(tb.data()) != (tb.size() - 8) / kNodeBytes ||
+      tb.size() == 8) {
+    return Status::corruption(fmt::format("{}: tree section: size {} does not match its node count", name, tb.size()));
+  }
+  nodes_.resize((tb.size() - 8) / kNodeBytes);
+  for (size_t i = 0; i < nodes_.size(); ++i) {
+    const uint8_t* p = tb.data() + 8 + kNodeBytes * i;
+    nodes_[i] = {get_f64(p), get_u32(p + 8), get_u32(p + 12)};
+  }
+
+  auto cell_bytes = section(kCellsSection);
+  if (!cell_bytes) return cell_bytes.status();
+  const std::vector<uint8_t>& cb = *cell_bytes;
+  if (cb.size() < 8 || (cb.size() - 8) % kCellBytes != 0 || get_u64(cb.data()) != (cb.size() - 8) / kCellBytes) {
+    return Status::corruption(fmt::format("{}: cells section: size {} does not match its cell count", name, cb.size()));
+  }
+  cells_.resize((cb.size() - 8) / kCellBytes);
+  uint64_t references = 0;
+  for (size_t i = 0; i < cells_.size(); ++i) {
+    const uint8_t* p = cb.data() + 8 + kCellBytes * i;
+    StoreCell& c = cells_[i];
+    c.bounds = get_box(p);
+    c.content = get_box(p + 48);
+    if (c.bounds.empty() || !finite(c.bounds)) return Status::corruption(fmt::format("{}: cell {}: bad bounds", name, i));
+    c.references = get_u32(p + 96);
+    c.page = get_u64(p + 104);
+    const bool has_page = c.page != StoreCell::kNoPage;
+    if (get_u32(p + 100) != 0 || (has_page && c.page >= reader_->page_count()) || has_page != (c.references > 0)) {
+      return Status::corruption(fmt::format("{}: cell {}: bad page reference", name, i));
+    }
+    if (!c.content.empty() && !(c.bounds.contains(c.content.lo) && c.bounds.contains(c.content.hi))) {
+      return Status::corruption(fmt::format("{}: cell {}: content outside the cell", name, i));
+    }
+    references += c.references;
+  }
+  if (references != info_.references) {
+    return Status::corruption(fmt::format("{}: cells hold {} references, the model section says {}", name, references,
+                                          info_.references));
+  }
+
+  // Walk the tree (preorder, lower child = next node): every node visited once, splits strictly
+  // inside their region, every cell reached once with exactly the region its record states.
+  struct Visit {
+    uint32_t node;
+    Aabb region;
+    uint32_t depth;
+  };
+  std::vector<Visit> stack{{0, info_.bounds, 0}};
+  std::vector<uint8_t> cell_seen(cells_.size(), 0);
+  size_t visited = 0;
+  uint32_t expected = 0;  // preorder: nodes are visited in index order
+  while (!stack.empty()) {
+    const Visit v = stack.back();
+    stack.pop_back();
+    if (v.node != expected || v.node >= nodes_.size()) {
+      return Status::corruption(fmt::format("{}: tree node {}: not in preorder", name, v.node));
+    }
+    ++expected;
+    ++visited;
+    depth_ = std::max(depth_, v.depth);
+    const KdTree::Node& n = nodes_[v.node];
+    if (n.is_leaf()) {
+      if (n.child >= cells_.size() || cell_seen[n.child]) {
+        return Status::corruption(fmt::format("{}: tree node {}: bad cell {}", name, v.node, n.child));
+      }
+      cell_seen[n.child] = 1;
+      if (!(cells_[n.child].bounds.lo == v.region.lo && cells_[n.child].bounds.hi == v.region.hi)) {
+        return Status::corruption(fmt::format("{}: cell {}: bounds differ from its tree region", name, n.child));
+      }
+      continue;
+    }
+    const int a = static_cast<int>(n.axis_or_leaf);
+    if (a > 2 || !(n.split > v.region.lo[a] && n.split < v.region.hi[a]) || n.child <= v.node + 1 ||
+        n.child >= nodes_.size()) {
+      return Status::corruption(fmt::format("{}: tree node {}: bad split", name, v.node));
+    }
+    Aabb lower = v.region, upper = v.region;
+    lower.hi[a] = n.split;
+    upper.lo[a] = n.split;
+    stack.push_back({n.child, upper, v.depth + 1});
+    stack.push_back({v.node + 1, lower, v.depth + 1});
+  }
+  if (visited != nodes_.size()) return Status::corruption(fmt::format("{}: tree has unreachable nodes", name));
+  for (size_t i = 0; i < cells_.size(); ++i) {
+    if (!cell_seen[i]) return Status::corruption(fmt::format("{}: cell {} is not in the tree", name, i));
+  }
+
+  if (reader_->section(kPortalsSection)) {
+    const std::string where = fmt::format("{}: {} section", name, kPortalsSection);
+    auto portal_bytes = reader_->read_section(kPortalsSection);
+    if (!portal_bytes && portal_bytes.status().code() == Status::Code::Corruption) {
+      return Status::corruption(fmt::format("{}: {}", where, portal_bytes.status().message()));
+    }
+    if (!portal_bytes) return portal_bytes.status();
+    auto graph = PortalGraph::deserialize(*portal_bytes, where);
+    if (!graph) return graph.status();
+    portals_.emplace(std::move(*graph));
+  }
+  return Status::ok();
+}
+
+Status StoreModel::read_cell(uint32_t cell, Scene& out) const {
+  out = Scene{};
+  const StoreCell& c = cells_.at(cell);
+  if (c.page == StoreCell::kNoPage) return Status::ok();
+  auto page = reader_->read_page(c.page);
+  if (!page) return page.status();
+  return decode_page(cell, page->codec, page->payload, out);
+}
+
+Status StoreModel::decode_page(uint32_t cell, uint8_t codec, std::span<const uint8_t> payload, Scene& out) const {
+  out = Scene{};
+  const StoreCell& c = cells_.at(cell);
+  if (codec != static_cast<uint8_t>(CellCodec::Raw) && codec != static_cast<uint8_t>(CellCodec::Draco)) {
+    return Status::corruption(
+        fmt::format("{}: cell {} page {}: unknown codec {}", reader_->name(), cell, c.page, codec));
+  }
+  Status s = decode_cell(payload, static_cast<CellCodec>(codec), info_.lattice, out);
+  if (!s) {
+    return Status::corruption(fmt::format("{}: cell {} page {}: {}", reader_->name(), cell, c.page, s.message()));
+  }
+  return check_cell(cell, out);
+}
+
+Status StoreModel::check_cell(uint32_t cell, const Scene& decoded) const {
+  const StoreCell& c = cells_.at(cell);
+  if (decoded.size() > c.references) {
+    return Status::corruption(fmt::format("{}: cell {} page {}: {} primitives, the cell record says {}",
+                                          reader_->name(), cell, c.page, decoded.size(), c.references));
+  }
+  // Snapped or decoded geometry may sit a lattice step across the region: allow that much.
+  Aabb region = c.bounds;
+  const double slack = info_.codec == CellCodec::Draco ? info_.lattice.step : 0.0;
+  const double eps = slack + 1e-9 * glm::length(info_.bounds.extent());
+  region.lo -= Vec3(eps);
+  region.hi += Vec3(eps);
+  for (uint32_t i = 0; i < decoded.size(); ++i) {
+    const PrimRef& p = decoded.prims[i];
+    if (p.material >= info_.materials.size() || p.source >= info_.input_primitives) {
+      return Status::corruption(fmt::format("{}: cell {} page {}: primitive {} has a bad material or source",
+                                            reader_->name(), cell, c.page, i));
+    }
+    if (region.intersection(decoded.prim_bounds(i)).empty()) {
+      return Status::corruption(fmt::format("{}: cell {} page {}: primitive {} lies outside the cell", reader_->name(),
+                                            cell, c.page, i));
+    }
+  }
+  return Status::ok();
+}
+
+Status StoreModel::load_scene(Scene& scene, std::vector<std::vector<uint32_t>>& cell_prims) const {
+  scene = Scene{};
+  scene.materials = info_.materials;
+  scene.lights = info_.lights;
+  scene.camera = info_.camera;
+  scene.background = info_.background;
+  scene.input_primitives = static_cast<uint32_t>(std::min<uint64_t>(info_.input_primitives, UINT32_MAX));
+  scene.degenerate_dropped = info_.degenerate_dropped;
+  cell_prims.assign(cells_.size(), {});
+  Scene cell;
+  for (uint32_t c = 0; c < cells_.size(); ++c) {
+    if (Status s = read_cell(c, cell); !s) return s;
+    const auto first = static_cast<uint32_t>(scene.size());
+    for (uint32_t i = 0; i < cell.size(); ++i) scene.add_from(cell, i);
+    auto& list = cell_prims[c];
+    list.resize(cell.size());
+    for (uint32_t i = 0; i < cell.size(); ++i) list[i] = first + i;
+  }
+  return Status::ok();
+}
+
+Status StoreModel::load_all(Scene& scene, KdTree& tree, const KdBuildOptions& options) const {
+  std::vector<std::vector<uint32_t>> cell_prims;
+  if (Status s = load_scene(scene, cell_prims); !s) return s;
+  tree = KdTree::refine(scene, nodes_, info_.bounds, cell_prims, options);
+  return Status::ok();
+}
+
+}  // namespace frontier

@@ -1,0 +1,115 @@
+// StoreModel: a model as the store holds it — the sections `model` (JSON: lattice, codec,
+// counts, materials, lights, camera), `tree` (the top k-d tree's nodes) and `cells` (one record
+// per top cell: bounds, content bounds, reference count, page), the optional `portals` (the
+// building's cells-and-portals graph, src/raster/portals.h) — and the decoding of a cell's page into
+// primitives. Byte layouts are in store/FORMAT.md ("Model sections", "Cell pages").
+//
+// The top tree is resident; cell pages are decoded on demand (read_cell) or all at once
+// (load_all, for models that fit in memory: the round-trip tests and rendering a small store
+// with the in-memory engine). A primitive that straddles cells is stored in every cell it
+// overlaps, so load_all yields one scene primitive per reference; ids (sources) are unchanged.
+#pragma once
+
+#include "src/paging/cell_codec.h"
+#include "src/engine/kdtree.h"
+#include "src/raster/portals.h"
+#include "src/core/scene.h"
+#include "src/core/status.h"
+#include "store/store_file.h"
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace frontier {
+
+inline constexpr std::string_view kModelSection = "model";
+inline constexpr std::string_view kTreeSection = "tree";
+inline constexpr std::string_view kCellsSection = "cells";
+inline constexpr std::string_view kSdfSection = "sdf";
+
+struct StoreCell {
+  static constexpr uint64_t kNoPage = UINT64_MAX;
+  Aabb bounds;               // the cell's region
+  Aabb content;              // union of its references' bounds clipped to the region
+  uint32_t references = 0;   // primitives stored in its page
+  uint64_t page = kNoPage;   // store page id; kNoPage for an empty cell
+};
+
+// Everything the `model` section says.
+struct StoreModelInfo {
+  CellCodec codec = CellCodec::Draco;
+  Lattice lattice;                    // meaningful for the Draco codec (raw stores exact doubles)
+  Aabb bounds;                        // the top tree's root region
+  uint64_t input_primitives = 0;      // input primitives over all inputs (ids are < this)
+  uint64_t primitives = 0;            // after triangulation and dropping degenerate ones
+  uint64_t references = 0;            // sum over cells (straddling primitives count per cell)
+  uint64_t triangles = 0;             // distinct triangles
+  uint64_t degenerate_dropped = 0;    // by the readers and by snapping to the lattice
+  uint32_t cell_prims = 0;            // the build's --cell-prims
+  std::vector<std::string> inputs;
+  std::vector<Material> materials;
+  std::vector<PointLight> lights;
+  std::optional<Camera> camera;
+  Vec3 background{0.0};
+  bool walkable = false;              // an `sdf` section exists
+  double sdf_voxel = 0.0;
+  double walk_radius = 0.0;           // the walker clearance the grid's band was sized for
+
+  std::vector<uint8_t> to_bytes() const;
+  static Result<StoreModelInfo> from_bytes(std::span<const uint8_t> bytes, const std::string& where);
+};
+
+// Section encoders (the builder) and decoders (the reader); decoders bounds-check everything.
+std::vector<uint8_t> encode_tree(const std::vector<KdTree::Node>& nodes);
+std::vector<uint8_t> encode_cells(const std::vector<StoreCell>& cells);
+
+class StoreModel {
+ public:
+  // Opens a store and checks the model, tree and cells sections (structure only: every node
+  // and cell consistent, regions nested, pages in range) and loads the portals section when
+  // there is one (Corruption naming the store and the section when it is damaged). Pages are
+  // not read.
+  static Result<std::unique_ptr<StoreModel>> open(const std::string& path);
+  static Result<std::unique_ptr<StoreModel>> open(std::unique_ptr<store::StoreReader> reader);
+
+  const StoreModelInfo& info() const { return info_; }
+  const std::vector<KdTree::Node>& nodes() const { return nodes_; }
+  const std::vector<StoreCell>& cells() const { return cells_; }
+  uint32_t depth() const { return depth_; }
+  const store::StoreReader& reader() const { return *reader_; }
+  // The cells-and-portals graph of the `portals` section; nullptr when the store has none.
+  // Owned by the model and valid as long as it is.
+  const PortalGraph* portals() const { return portals_ ? &*portals_ : nullptr; }
+
+  // Decodes one cell's page (an empty scene for a cell without a page). Corruption naming the
+  // cell and page when the page's checksum or contents are bad. Thread-safe.
+  Status read_cell(uint32_t cell, Scene& out) const;
+  // The same for a page already read (by the page cache): decodes and checks it.
+  Status decode_page(uint32_t cell, uint8_t codec, std::span<const uint8_t> payload, Scene& out) const;
+  // Checks a decoded cell against its record: reference count, and every primitive overlaps
+  // the cell's region.
+  Status check_cell(uint32_t cell, const Scene& decoded) const;
+
+  // Decodes every page into one scene (materials, lights, camera from the model section) and
+  // lists, per top cell, the scene primitives it holds.
+  Status load_scene(Scene& scene, std::vector<std::vector<uint32_t>>& cell_prims) const;
+  // load_scene, then the in-memory tree: the store's top tree with every cell refined by the
+  // SAH builder (`options`, min/max cell size of the in-memory engine).
+  Status load_all(Scene& scene, KdTree& tree, const KdBuildOptions& options = {}) const;
+
+ private:
+  StoreModel() = default;
+  Status parse();
+
+  std::unique_ptr<store::StoreReader> reader_;
+  StoreModelInfo info_;
+  std::vector<KdTree::Node> nodes_;
+  std::vector<StoreCell> cells_;
+  uint32_t depth_ = 0;
+  std::optional<PortalGraph> portals_;
+};
+
+}  // namespace frontier

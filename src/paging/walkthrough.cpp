@@ -1,0 +1,372 @@
+// Walkthrough: the out-of-core frame loop (see walkthrough.h).
+#include "src/paging/walkthrough.h"
+
+#include "src/engine/render.h"
+#include "src/paging/walker.h"
+
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+
+namespace frontier {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// How many frames ahead the eye's path is prefetched.
+constexpr int kPrefetchFrames = 4;
+
+bool same_camera(const Camera& a, const Camera& b) {
+  return a.eye == b.eye && a.look_at == b.look_at && a.up == b.up && a.vfov_deg == b.vfov_deg;
+}
+
+double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
+
+}  // namespace
+
+nlohmann::json FrameReport::to_json() const {
+  nlohmann::json j = {{"frame", frame},
+                      {"eye", {eye.x, eye.y, eye.z}},
+                      {"cells_touched", cells_touched},
+                      {"cells_paged_in", cells_paged_in},
+                      {"bytes_read", bytes_read},
+                      {"resident_bytes", resident_bytes},
+                      {"pinned_bytes", pinned_bytes},
+                      {"cache_budget", cache_budget},
+                      {"primitives_tested", primitives_tested},
+                      {"ray_primitive_tests", ray_primitive_tests},
+                      {"rays", rays},
+                      {"samples", samples},
+                      {"frame_ms", frame_ms},
+                      {"stall_ms", stall_ms},
+                      {"floor_ms", floor_ms},
+                      {"image_samples", image_samples},
+                      {"pixels", pixels},
+                      {"complete", complete},
+                      {"continued", continued},
+                      {"shadows", shadows},
+                      {"parked", parked},
+                      {"cells_evicted", cells_evicted},
+                      {"cells_dropped", cells_dropped},
+                      {"page_errors", page_errors},
+                      {"resident_cells", resident_cells},
+                      {"collision_queries", collision_queries},
+                      {"collision_bricks", collision_bricks},
+                      {"collision_bytes", collision_bytes},
+                      {"collision_loads", collision_loads},
+                      {"collision_errors", collision_errors},
+                      {"decode_ms", decode_ms},
+                      {"reconstruct_ms", reconstruct_ms},
+                      {"shading_ops", shading_ops},
+                      {"shadow_rays", shadow_rays}};
+  j["visibility"] = visibility_name(visibility);
+  j["nodes_touched"] = nodes_touched;
+  j["primitives_touched"] = primitives_touched;
+  j["pixels_rasterized"] = pixels_rasterized;
+  j["culling_rate"] = culling_rate;
+  if (cull) j["cull"] = cull->to_json();
+  if (oracle_cells) j["oracle_cells"] = *oracle_cells;
+  if (oracle_ratio) j["touched_oracle_ratio"] = *oracle_ratio;
+  return j;
+}
+
+void FrameReport::add_walk_counters(const Walker& walker) {
+  collision_queries = walker.queries();
+  const CollisionGrid::Counters c = walker.grid().counters();
+  collision_bricks = c.resident;
+  collision_bytes = c.resident_bytes;
+  collision_loads = c.loads;
+  collision_errors = c.errors;
+}
+
+KdBuildOptions page_refine_options(const WalkOptions& options) {
+  KdBuildOptions build;
+  build.max_cell_prims = options.cell_prims;
+  build.traversal_cost = options.cell_traversal_cost;
+  build.forced_split_max_share = options.cell_split_share;
+  return build;
+}
+
+Result<std::unique_ptr<Walkthrough>> Walkthrough::open(const std::string& store_path, const WalkOptions& options) {
+  if (options.width < 1 || options.height < 1) return Status::invalid_argument("image size must be at least 1x1");
+  auto model = StoreModel::open(store_path);
+  if (!model) return model.status();
+  std::unique_ptr<Walkthrough> w(new Walkthrough());
+  w->options_ = options;
+  w->model_ = std::move(*model);
+  PagedWorldOptions po;
+  po.budget_bytes = options.cache_bytes;
+  po.cell_build = page_refine_options(options);
+  w->world_ = std::make_unique<PagedWorld>(*w->model_, po);
+  w->shader_ = std::make_unique<Shader>(w->world_->scene(), w->world_->tree());
+  w->caster_ = std::make_unique<FrustumCaster>(w->world_->scene(), w->world_->tree(), *w->shader_, options.threads);
+  w->caster_->set_leaf_pixels(options.leaf_pixels);
+  w->caster_->set_gate(w->world_.get());
+  if (options.oracle) w->oracle_ = std::make_unique<StoreOracle>(*w->model_);
+  if (options.visibility != Visibility::kFrustumAdvance) {
+    if (options.visibility == Visibility::kPortals && w->model_->portals() == nullptr) {
+      return Status::invalid_argument(store_path +
+                                      ": --visibility portals needs a store with cells and portals (built from a "
+                                      "model with a frontier-gen building sidecar)");
+    }
+    CullOptions co;
+    co.visibility = options.visibility;
+    co.cull_back_faces = options.cull_back_faces;
+    co.threads = options.threads;
+    w->culler_ = std::make_unique<CullingRenderer>(co, w->model_->portals());
+  }
+  return w;
+}
+
+Walkthrough::~Walkthrough() = default;
+
+void Walkthrough::start_image(bool shadows) {
+  world_->begin_frame(marks_);
+  image_shadows_ = shadows;
+  caster_->begin(view_, buffer_, marks_, true, shadows);
+  image_samples_ = 0;
+}
+
+namespace {
+
+// The paged world as the culling classes see it: missing cells are paged in on request, and
+// cells a frame already drew may be evicted while it goes on.
+class PagedCullSource final : public CullSource {
+ public:
+  explicit PagedCullSource(PagedWorld& world) : world_(world) {}
+  const KdTree& tree() const override { return world_.tree(); }
+  const Scene& scene() const override { return world_.scene(); }
+  bool missing(int32_t cell) const override { return world_.missing(cell); }
+  void want(int32_t cell) override { world_.want(cell); }
+  bool fetch() override {
+    if (world_.pending() == 0) return false;
+    stall_ms += world_.wait_for_pages(Clock::time_point::max());
+    world_.sync_evicting();
+    return true;
+  }
+  uint64_t generation() const override { return world_.generation(); }
+  void used(int32_t cell) override { world_.touch(world_.store_cell(cell)); }
+
+  double stall_ms = 0.0;
+
+ private:
+  PagedWorld& world_;
+};
+
+}  // namespace
+
+// One complete frame of a rasterizing visibility class.
+FrameReport Walkthrough::culling_frame(const Camera& camera) {
+  const auto start = Clock::now();
+  FrameReport r;
+  r.frame = frames_++;
+  r.eye = camera.eye;
+  r.visibility = options_.visibility;
+  view_ = View(camera, options_.width, options_.height);
+  last_camera_ = camera;
+  world_->begin_frame(marks_);
+  PagedCullSource source(*world_);
+  const CullCounters cc = culler_->render(view_, source);
+  cull_image_.clear();
+  reconstructed_ = false;
+  const auto finish_start = Clock::now();
+  if (options_.reconstruct_each_frame) {
+    image();
+    r.reconstruct_ms = ms_since(finish_start);
+  }
+  r.cells_touched = world_->end_frame(CellMarks());
+  r.pinned_bytes = world_->pinned_bytes();
+  r.primitives_tested = cc.primitives_touched;
+  r.pixels = view_.pixels();
+  r.samples = r.image_samples = r.pixels;
+  r.complete = cc.cells_unavailable == 0;
+  r.stall_ms = source.stall_ms;
+  r.nodes_touched = cc.nodes_touched;
+  r.primitives_touched = cc.primitives_touched;
+  r.pixels_rasterized = cc.pixels_rasterized;
+  r.cull = cc;
+  report_paging(r);
+  r.frame_ms = ms_since(start);
+  report_oracle(r);
+  return r;
+}
+
+// The fields every frame reports the same way, whatever rendered it: paging since the last
+// frame, the cache, and the culling rate of r.primitives_touched.
+void Walkthrough::report_paging(FrameReport& r) {
+  const PagingCounters paging = world_->take_counters();
+  const store::PageCacheStats cache = world_->cache_stats();
+  r.cells_paged_in = paging.cells_paged_in;
+  r.cells_evicted = paging.cells_evicted;
+  r.cells_dropped = paging.cells_dropped;
+  r.decode_ms = paging.decode_ms;
+  r.bytes_read = cache.bytes_read - last_bytes_read_;
+  last_bytes_read_ = cache.bytes_read;
+  r.page_errors = cache.errors;
+  r.resident_bytes = world_->resident_bytes();
+  r.resident_cells = world_->resident_cells();
+  r.cache_budget = world_->budget_bytes();
+  const uint64_t refs = model_->info().references;
+  r.culling_rate = refs > 0 ? 1.0 - std::min(1.0, double(r.primitives_touched) / double(refs)) : 0.0;
+}
+
+void Walkthrough::report_oracle(FrameReport& r) {
+  if (!oracle_) return;
+  oracle_frame_ = oracle_->frame(view_, options_.threads);
+  r.oracle_cells = oracle_frame_->cells.size();
+  if (!oracle_frame_->cells.empty()) r.oracle_ratio = double(r.cells_touched) / double(oracle_frame_->cells.size());
+}
+
+FrameReport Walkthrough::frame(const Camera& camera) {
+  if (culler_) return culling_frame(camera);
+  const auto start = Clock::now();
+  const FrameBudget& budget = options_.budget;
+  const bool unbounded = budget.ms <= 0.0 && budget.samples == 0;
+  const bool wait_for_all = options_.sync_paging || unbounded;
+  // A pegged frame time covers everything: the job queue stops early by what reconstruction
+  // and bookkeeping took lately (a running estimate), so the frame ends on time.
+  const double work_ms = std::max(0.5 * budget.ms, budget.ms - finish_ms_);
+  auto deadline = budget.ms > 0.0 ? start + std::chrono::duration_cast<Clock::duration>(
+                                                std::chrono::duration<double, std::milli>(work_ms))
+                                  : Clock::time_point::max();
+  FrameReport r;
+  r.frame = frames_++;
+  r.eye = camera.eye;
+  const std::optional<Camera> previous = last_camera_;
+  const bool still = previous && same_camera(*previous, camera);
+  const bool lights = shader_->effects().shadows && options_.shadows;
+  if (!still) {
+    view_ = View(camera, options_.width, options_.height);
+    start_image(false);
+  } else if (caster_->complete() && lights && !image_shadows_) {
+    start_image(true);  // the camera stopped and the image is complete: now the deferred effects
+  } else {
+    r.continued = true;
+  }
+  last_camera_ = camera;
+  // The quality floor (WalkOptions::min_sampled) holds for moving frames under a time peg.
+  const uint64_t floor_samples =
+      budget.ms > 0.0 && !still ? static_cast<uint64_t>(options_.min_sampled * double(view_.pixels())) : 0;
+  bool overtime = false;
+
+  // Paging in (decode + subtree build) is frame time too: with a pegged frame time it gets at
+  // most a quarter of the frame while other work is queued; the rest waits for the next frame
+  // (its work stays parked), so a burst of new cells costs samples over a few frames instead of
+  // most of one.
+  const auto page_in_deadline =
+      budget.ms > 0.0 ? std::min(deadline, start + std::chrono::duration_cast<Clock::duration>(
+                                                       std::chrono::duration<double, std::milli>(0.25 * budget.ms)))
+                      : deadline;
+  Counters counters;
+  int restarts = 0;
+  while (true) {
+    // With nothing else to do, paging in may use the rest of the frame.
+    if (world_->sync(caster_->runnable() ? page_in_deadline : deadline)) {
+      caster_->tree_changed();
+      caster_->resume_parked();
+    }
+    if (caster_->complete()) break;
+    if (overtime && image_samples_ >= floor_samples) break;
+    if (Clock::now() >= deadline) {
+      if (overtime || image_samples_ >= floor_samples) break;
+      overtime = true;
+      deadline = start + std::chrono::duration_cast<Clock::duration>(
+                             std::chrono::duration<double, std::milli>((1.0 + kFloorMaxOvertime) * budget.ms));
+    }
+    if (budget.samples > 0 && counters.samples >= budget.samples) break;
+    if (caster_->runnable()) {
+      FrameBudget slice;
+      if (budget.ms > 0.0) slice.ms = std::max(0.01, std::chrono::duration<double, std::milli>(deadline - Clock::now()).count());
+      if (budget.samples > 0) slice.samples = budget.samples - counters.samples;
+      if (overtime) slice.samples = floor_samples - image_samples_;
+      const uint64_t before = counters.samples;
+      caster_->run(slice, counters);
+      image_samples_ += counters.samples - before;
+      continue;
+    }
+    // Only parked work is left.
+    if (world_->pending() == 0) {
+      // What it waits for was dropped for lack of room. Free what this image has not touched
+      // (cells of earlier images) once and start the image again; when the image alone fills
+      // the budget, the frame degrades: the missing cells' pixels stay reconstructed.
+      if (restarts++ < 1 && world_->reclaim_untouched(marks_)) {
+        caster_->begin(view_, buffer_, marks_, true, image_shadows_);
+        image_samples_ = 0;
+        continue;
+      }
+      break;
+    }
+    r.stall_ms += world_->wait_for_pages(wait_for_all ? Clock::time_point::max() : deadline);
+  }
+  // Prefetch: the cells the eye will be in over the next frames if it keeps moving as it did.
+  // A frame whose eye cell is missing can do nothing until that page is in; asking early
+  // keeps walks from stalling there. Prefetched cells are paged in, not touched.
+  if (previous) {
+    const Vec3 step = camera.eye - previous->eye;
+    for (int ahead = 1; ahead <= kPrefetchFrames && glm::length(step) > 0.0; ++ahead) {
+      const int32_t c = world_->tree().locate(camera.eye + double(ahead) * step, step);
+      if (c != KdTree::kNone && world_->missing(c)) world_->want(c);
+    }
+  }
+  const auto finish_start = Clock::now();
+  reconstructed_ = false;
+  if (options_.reconstruct_each_frame) {
+    image();
+    r.reconstruct_ms = ms_since(finish_start);
+  }
+
+  r.cells_touched = world_->end_frame(marks_);
+  r.pinned_bytes = world_->pinned_bytes() + world_->touched_bytes();
+  r.primitives_tested = counters.primitives_tested;
+  r.nodes_touched = counters.cell_visits;
+  r.primitives_touched = counters.primitives_tested;
+  r.ray_primitive_tests = counters.ray_primitive_tests;
+  r.rays = counters.rays;
+  r.samples = counters.samples;
+  r.shading_ops = counters.shading_ops;
+  r.shadow_rays = counters.shadow_rays;
+  r.pixels = view_.pixels();
+  r.image_samples = image_samples_;
+  r.complete = caster_->complete();
+  r.shadows = image_shadows_;
+  r.parked = caster_->parked();
+  report_paging(r);
+  r.frame_ms = ms_since(start);
+  if (overtime) r.floor_ms = std::max(0.0, r.frame_ms - budget.ms);
+  // The estimate follows increases at once and decreases slowly (a late frame costs more
+  // than a few samples).
+  const double finish = ms_since(finish_start);
+  finish_ms_ = finish > finish_ms_ ? finish : 0.9 * finish_ms_ + 0.1 * finish;
+  report_oracle(r);
+  return r;
+}
+
+const std::vector<Rgb>& Walkthrough::image() {
+  if (culler_) {
+    if (cull_image_.empty()) {
+      Counters counters;
+      cull_image_ = culler_->shade(*shader_, counters);
+    }
+    return cull_image_;
+  }
+  if (!reconstructed_) {
+    reconstruct(buffer_, shader_->background());
+    reconstructed_ = true;
+  }
+  return buffer_.image();
+}
+
+std::vector<uint32_t> Walkthrough::ids() const {
+  if (culler_) return culler_->ids();
+  std::vector<uint32_t> out(buffer_.size(), kNoPrim);
+  const Scene& scene = world_->scene();
+  for (size_t i = 0; i < out.size(); ++i) {
+    if (!buffer_.confirmed(i)) continue;
+    const uint32_t p = buffer_.prim(i);
+    if (p != kNoPrim) out[i] = scene.prims[p].source;
+  }
+  return out;
+}
+
+}  // namespace frontier

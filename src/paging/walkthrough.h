@@ -1,0 +1,194 @@
+// Walkthrough: the out-of-core frame loop of frontier-view — a store, a PagedWorld over it, a
+// FrustumCaster over the world, and one FrameReport per displayed frame.
+//
+// A displayed frame renders the camera within its budget (time or samples; without either it
+// runs until the image is complete). Frustum work that reaches a cell whose page is not in
+// memory is parked while the cache's loader reads it; between job slices the arrived cells are
+// decoded, refined and grafted, and the parked work resumes (paper §5.2's queue with paging).
+// Without --sync-paging a frame never waits for the disk while other work is left; when only
+// parked work is left and time remains it waits (that time is stall_ms). With sync paging it
+// waits until the image is complete, so its ids equal an in-memory render of the same store.
+//
+// The cells the eye will enter if it keeps moving as it did are requested ahead (prefetch: a
+// frame whose own eye cell is missing can do nothing until it arrives).
+//
+// Progressive (§5.3): a frame whose camera equals the previous one continues the same image
+// (more samples) instead of starting a new one; the first complete image of a still camera
+// is followed by one with the deferred effects (shadows) if the scene declares lights. While
+// the camera moves, images have immediate effects only.
+//
+// The report's fields are DESIGN.md's "Working set, defined once", counted in store cells (a
+// store cell refined into a subtree counts once): see FrameReport.
+#pragma once
+
+#include "src/core/counters.h"
+#include "src/engine/frustum.h"
+#include "src/paging/paged_world.h"
+#include "src/core/sample_buffer.h"
+#include "src/engine/shading.h"
+#include "src/paging/store_model.h"
+#include "src/paging/store_oracle.h"
+#include "src/core/view.h"
+#include "src/raster/visibility.h"
+
+#include <nlohmann/json_fwd.hpp>
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace frontier {
+
+struct WalkOptions {
+  uint64_t cache_bytes = 512ull << 20;
+  int width = 640, height = 480;
+  int threads = 0;             // render threads (0: all cores)
+  FrameBudget budget;          // per displayed frame; neither set: run each image to completion
+  bool sync_paging = false;
+  bool oracle = false;         // compute oracle_cells (exact per-pixel rays) every frame
+  bool shadows = true;         // deferred shadows when the camera stops (scene must declare lights)
+  // A quality floor under the frame-time peg: a moving frame that reaches its time with fewer
+  // than this share of its pixels sampled goes on until it has them, for at most
+  // kFloorMaxOvertime more frame times (paging, a burst of new cells or a descheduled worker
+  // would otherwise show a frame that is mostly reconstruction). 0: pure frame-time pegging
+  // (paper §5.5). The report's floor_ms says how long a frame ran past its peg for it.
+  double min_sampled = 0.5;
+  // How a paged-in store cell is refined (page-in time is frame time). Measured on the 100 M
+  // triangle building walk (tests/bench/bench_walk.sh): 16 / 4.0 / 0.75 build a cell in
+  // 1.3 ms instead of 2.9 ms (8 / 2.0 / 1.0, the in-memory engine's), with 4.6 instead of 8.1
+  // references per primitive (half the memory) and more samples per 33 ms frame.
+  uint32_t cell_prims = 16;
+  double cell_traversal_cost = 4.0;
+  double cell_split_share = 0.75;
+  int leaf_pixels = FrustumCaster::kDefaultLeafPixels;
+  // Reconstruct the displayed image at the end of every frame (inside the frame's time; a
+  // window needs it). Off, image() reconstructs on demand: headless walks pay for it only for
+  // the frames they write.
+  bool reconstruct_each_frame = true;
+  // Which visibility class renders the frames (src/raster/visibility.h). The rasterizing classes
+  // render every frame complete (paging synchronously) and ignore the budget.
+  Visibility visibility = Visibility::kFrustumAdvance;
+  bool cull_back_faces = false;  // rasterizing classes: drop back faces (closed solids only)
+};
+
+// How a paged-in store cell is refined into its own subtree under `options` (PagedWorld's
+// cell_build; bench_build times the same).
+KdBuildOptions page_refine_options(const WalkOptions& options);
+
+class Walker;
+
+struct FrameReport {
+  uint64_t frame = 0;
+  Vec3 eye{0.0};                    // the camera's eye (walk mode: after collision)
+  // DESIGN.md "Working set, defined once".
+  uint64_t cells_touched = 0;       // store cells a frustum or ray entered (in this image so far)
+  uint64_t cells_paged_in = 0;      // store cells decoded and grafted during this frame
+  uint64_t bytes_read = 0;          // page bytes read from the store file during this frame
+  uint64_t resident_bytes = 0;      // compressed pages in the cache + decoded cells
+  uint64_t pinned_bytes = 0;        // of those, what this image touched (not evictable now)
+  uint64_t cache_budget = 0;
+  uint64_t primitives_tested = 0;
+  uint64_t ray_primitive_tests = 0;
+  uint64_t rays = 0;
+  uint64_t samples = 0;             // pixels confirmed during this frame
+  double frame_ms = 0.0;
+  double stall_ms = 0.0;            // waiting for pages with nothing else to do
+  double floor_ms = 0.0;            // time past the pegged frame time spent reaching min_sampled
+  // More.
+  std::optional<uint64_t> oracle_cells;
+  std::optional<double> oracle_ratio;  // cells_touched / oracle_cells
+  uint64_t image_samples = 0;       // pixels confirmed in the image so far
+  uint64_t pixels = 0;
+  bool complete = false;            // every pixel of the image confirmed
+  bool continued = false;           // same camera as the previous frame: the image went on
+  bool shadows = false;             // the image has the deferred shadow effect
+  uint64_t parked = 0;              // parked jobs left at the end of the frame
+  uint64_t cells_evicted = 0;
+  uint64_t cells_dropped = 0;
+  uint64_t page_errors = 0;         // cumulative: pages that failed to read or decode
+  uint64_t resident_cells = 0;
+  uint64_t collision_queries = 0;   // filled in by the viewer's walk mode (0 without it)
+  // Walk mode's collision grid (0 without it): bricks resident now and their memory, bricks
+  // read since the start (cumulative), bricks that failed to read (cumulative; they read solid).
+  uint64_t collision_bricks = 0;
+  uint64_t collision_bytes = 0;
+  uint64_t collision_loads = 0;
+  uint64_t collision_errors = 0;
+  // Fills the collision fields from a walker (queries) and its grid (brick cache).
+  void add_walk_counters(const Walker& walker);
+  double decode_ms = 0.0;
+  double reconstruct_ms = 0.0;      // 0 when the frame did not reconstruct its image
+  uint64_t shading_ops = 0;
+  uint64_t shadow_rays = 0;
+  // Issue 7's comparison of visibility classes. Frustum advance: nodes_touched counts cell
+  // entries (with repetition: its navigation goes through ropes, not down from the root),
+  // primitives_touched its primitive incidences, nothing is rasterized.
+  Visibility visibility = Visibility::kFrustumAdvance;
+  uint64_t nodes_touched = 0;
+  uint64_t primitives_touched = 0;   // primitive references examined
+  uint64_t pixels_rasterized = 0;    // fragments depth-tested (rasterizing classes)
+  double culling_rate = 0.0;         // 1 - primitives_touched / the store's references
+  std::optional<CullCounters> cull;  // the rasterizing classes' own counters
+  nlohmann::json to_json() const;
+};
+
+class Walkthrough {
+ public:
+  // The longest a frame goes on past its pegged time for WalkOptions::min_sampled, in frame times.
+  static constexpr double kFloorMaxOvertime = 1.0;
+  static Result<std::unique_ptr<Walkthrough>> open(const std::string& store_path, const WalkOptions& options);
+  ~Walkthrough();
+
+  FrameReport frame(const Camera& camera);
+  // Changes the per-frame budget (pegging time or samples, paper §5.5) for the next frames.
+  void set_budget(const FrameBudget& budget) { options_.budget = budget; }
+  const FrameBudget& budget() const { return options_.budget; }
+
+  const StoreModel& model() const { return *model_; }
+  const PagedWorld& world() const { return *world_; }
+  const SampleBuffer& buffer() const { return buffer_; }
+  // The displayed image (§5.4 reconstruction of the current samples), row-major, top row first.
+  const std::vector<Rgb>& image();
+  const View& view() const { return view_; }
+  // Per pixel: the source id of the first hit (kNoPrim: background or not sampled yet).
+  std::vector<uint32_t> ids() const;
+  // Rasterizing classes: the ray parameter t per pixel (kInfinity: background); empty otherwise.
+  std::vector<double> depths() const { return culler_ ? culler_->depths() : std::vector<double>{}; }
+  // Store cells touched by the current image.
+  std::vector<uint32_t> touched_cells() const {
+    return culler_ ? world_->touched_this_frame() : world_->touched_store_cells(marks_);
+  }
+  // The oracle's last frame (only with options.oracle).
+  const OracleFrame* last_oracle() const { return oracle_frame_ ? &*oracle_frame_ : nullptr; }
+
+ private:
+  Walkthrough() = default;
+  void start_image(bool shadows);
+  FrameReport culling_frame(const Camera& camera);
+  void report_paging(FrameReport& r);
+  void report_oracle(FrameReport& r);
+
+  WalkOptions options_;
+  std::unique_ptr<StoreModel> model_;
+  std::unique_ptr<PagedWorld> world_;
+  std::unique_ptr<Shader> shader_;
+  std::unique_ptr<FrustumCaster> caster_;
+  std::unique_ptr<CullingRenderer> culler_;  // rasterizing visibility classes
+  std::vector<Rgb> cull_image_;
+  std::unique_ptr<StoreOracle> oracle_;
+  std::optional<OracleFrame> oracle_frame_;
+  SampleBuffer buffer_;
+  CellMarks marks_;
+  View view_;
+  std::optional<Camera> last_camera_;
+  bool image_shadows_ = false;
+  uint64_t frames_ = 0;
+  uint64_t last_bytes_read_ = 0;
+  double finish_ms_ = 0.0;        // recent time from the end of the job queue to the end of a frame
+  bool reconstructed_ = false;    // image() is up to date with the samples
+  uint64_t image_samples_ = 0;    // pixels confirmed in the current image (each confirm counts one)
+};
+
+}  // namespace frontier
