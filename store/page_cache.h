@@ -32,11 +32,10 @@
 #include <unordered_map>
 #include <vector>
 
+#include "store/page_id.h"
 #include "store/status.h"
 
 namespace frontier::store {
-
-using PageId = uint64_t;
 
 struct PageData {
   uint8_t codec = 0;

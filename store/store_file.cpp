@@ -45,11 +45,11 @@ Result<Handle> StoreWriter::append_block(uint8_t codec, std::span<const uint8_t>
   return h;
 }
 
-Result<StorePageId> StoreWriter::add_page(uint8_t codec, std::span<const uint8_t> payload) {
+Result<PageId> StoreWriter::add_page(uint8_t codec, std::span<const uint8_t> payload) {
   auto h = append_block(codec, payload);
   if (!h) return h.status();
   pages_.push_back(h.value());
-  return static_cast<StorePageId>(pages_.size() - 1);
+  return static_cast<PageId>(pages_.size() - 1);
 }
 
 Status StoreWriter::add_section(std::string_view name, std::span<const uint8_t> payload) {
@@ -169,7 +169,7 @@ Result<OwnedPage> StoreReader::read_block(Handle handle) const {
   return page;
 }
 
-Result<OwnedPage> StoreReader::read_page(StorePageId id) const {
+Result<OwnedPage> StoreReader::read_page(PageId id) const {
   if (id >= pages_.size()) {
     return Status::invalid_argument(name() + ": page " + std::to_string(id) + " does not exist (" +
                                     std::to_string(pages_.size()) + " pages)");

@@ -23,10 +23,9 @@
 
 #include "store/page_file.h"
 #include "store/page_format.h"
+#include "store/page_id.h"
 
 namespace frontier::store {
-
-using StorePageId = uint64_t;  // index into the "pages" section, in the order pages were added
 
 inline constexpr std::string_view kPagesSection = "pages";
 
@@ -45,7 +44,7 @@ class StoreWriter {
   StoreWriter& operator=(const StoreWriter&) = delete;
 
   // Appends a page; its id is the number of pages added before it.
-  Result<StorePageId> add_page(uint8_t codec, std::span<const uint8_t> payload);
+  Result<PageId> add_page(uint8_t codec, std::span<const uint8_t> payload);
   // Appends a named section ("cells", "tree", "sdf", ...), stored as one raw block.
   // InvalidArgument for an empty, too long, duplicate or reserved ("pages") name.
   Status add_section(std::string_view name, std::span<const uint8_t> payload);
@@ -84,9 +83,9 @@ class StoreReader {
 
   size_t page_count() const { return pages_.size(); }
   // REQUIRES: id < page_count().
-  Handle page_handle(StorePageId id) const { return pages_.at(id); }
+  Handle page_handle(PageId id) const { return pages_.at(id); }
   // Reads and checks one page. Corruption naming the page's offset on a mismatch. Thread-safe.
-  Result<OwnedPage> read_page(StorePageId id) const;
+  Result<OwnedPage> read_page(PageId id) const;
   // Reads and checks any block by handle (bounds-checked against the data region).
   Result<OwnedPage> read_block(Handle handle) const;
 

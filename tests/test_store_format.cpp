@@ -41,7 +41,7 @@ Written write_store(FileSystem& fs, const std::string& path, int n, size_t max_s
     w.codecs.push_back(static_cast<uint8_t>(rng() % 3));
     auto id = (*writer)->add_page(w.codecs.back(), w.pages.back());
     EXPECT_TRUE(id.is_ok());
-    EXPECT_EQ(id.value(), static_cast<StorePageId>(i));
+    EXPECT_EQ(id.value(), static_cast<PageId>(i));
   }
   w.cells = pattern(40, seed + 1);
   w.tree = pattern(24, seed + 2);
