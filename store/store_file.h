@@ -52,7 +52,6 @@ class StoreWriter {
   Status finish();
 
   const std::string& path() const { return path_; }
-  uint64_t bytes_written() const { return offset_; }
 
  private:
   StoreWriter(FileSystem& fs, std::string path, std::unique_ptr<WritableFile> file);

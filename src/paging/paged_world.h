@@ -127,7 +127,6 @@ class PagedWorld final : public CellGate {
   uint64_t decoded_bytes() const { return decoded_bytes_; }
   // Decoded bytes of the cells the frame touched, as of the last end_frame().
   uint64_t touched_bytes() const { return touched_bytes_; }
-  uint64_t garbage_bytes() const { return garbage_bytes_; }
   // Compressed pages held by the cache plus decoded cells: never above budget_bytes() after
   // sync() returns (the cache's own rule: see store/page_cache.h).
   uint64_t resident_bytes() const { return cache_->resident_bytes() + decoded_bytes_; }
