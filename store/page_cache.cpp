@@ -29,7 +29,7 @@ void Pin::reset() {
 }
 
 PageCache::PageCache(PageSource& source, uint64_t budget_bytes, int loader_threads)
-    : source_(source), budget_(budget_bytes) {
+    : source_(source), budget_(budget_bytes), lru_(budget_bytes) {
   int n = loader_threads < 1 ? 1 : loader_threads;
   for (int i = 0; i < n; ++i) loaders_.emplace_back([this] { loader_main(); });
 }
@@ -46,38 +46,29 @@ PageCache::~PageCache() {
 
 Pin PageCache::pin_locked(PageId id, Entry& e) {
   assert(e.state == State::Resident);
-  if (e.pins++ == 0) {
-    lru_.erase(e.lru_pos);
-    pinned_bytes_ += e.data.bytes.size();
-  }
+  lru_.pin(id);
+  pinned_bytes_ = lru_.pinned_bytes();
   return Pin(this, id, e.data.codec, e.data.bytes);
 }
 
 void PageCache::unpin(PageId id) {
   std::lock_guard lock(mutex_);
-  auto it = entries_.find(id);
-  assert(it != entries_.end() && it->second.pins > 0);
-  Entry& e = it->second;
-  if (--e.pins == 0) {
-    pinned_bytes_ -= e.data.bytes.size();
-    lru_.push_front(id);
-    e.lru_pos = lru_.begin();
+  assert(entries_.count(id) != 0 && lru_.pins(id) > 0);
+  if (lru_.unpin(id)) {
+    pinned_bytes_ = lru_.pinned_bytes();
     evict_to_budget();
   }
 }
 
 void PageCache::evict_lru() {
-  PageId victim = lru_.back();
-  lru_.pop_back();
-  auto it = entries_.find(victim);
-  resident_bytes_ -= it->second.data.bytes.size();
-  entries_.erase(it);
+  entries_.erase(lru_.pop_oldest());
+  resident_bytes_ = lru_.resident_bytes();
   ++evictions_;
 }
 
 void PageCache::evict_to_budget() {
   // Keep the most recently used unpinned page even over budget (see the header).
-  while (resident_bytes_.load() > budget_ && lru_.size() > 1) evict_lru();
+  while (lru_.over_budget() && lru_.evictable() > 1) evict_lru();
 }
 
 void PageCache::load_and_publish(std::unique_lock<std::mutex>& lock, PageId id) {
@@ -95,20 +86,19 @@ void PageCache::load_and_publish(std::unique_lock<std::mutex>& lock, PageId id) 
       std::chrono::steady_clock::now() - start);
   lock.lock();
   page_in_ns_ += static_cast<uint64_t>(ns.count());
-  // The entry cannot have been erased: Loading entries are not on the LRU list.
+  // The entry cannot have been erased: Loading entries are not in the LRU.
   Entry& e = entries_.at(id);
   if (loaded) {
     // Make room first, then charge: resident_bytes_ only ever falls and then rises to its final
     // value, so a lock-free stats() reader never sees more than the post-publish charge.
     uint64_t size = loaded->bytes.size();
-    while (!lru_.empty() && resident_bytes_.load() + size > budget_) evict_lru();
+    while (lru_.evictable() > 0 && !lru_.fits(size)) evict_lru();
     e.data = std::move(loaded.value());
     e.state = State::Resident;
-    resident_bytes_ += size;
+    lru_.insert(id, size);
+    resident_bytes_ = lru_.resident_bytes();
     bytes_read_ += size;
     ++page_ins_;
-    lru_.push_front(id);
-    e.lru_pos = lru_.begin();
   } else {
     e.state = State::Failed;
     e.error = loaded.status();
@@ -136,7 +126,7 @@ Result<Pin> PageCache::pin(PageId id) {
         counted = true;
         e.state = State::Loading;
         load_and_publish(lock, id);
-        break;  // the lock is held again and the page is at the LRU front: pin it next round
+        break;  // the lock is held again and the page is the LRU's newest: pin it next round
       case State::Loading:
         if (!counted) ++misses_;
         counted = true;

@@ -6,25 +6,26 @@
 // Each page id has at most one entry, in one of four states:
 //   Queued   requested by request(), waiting for a loader thread (no bytes charged)
 //   Loading  being read by a loader thread or by a pin() caller (no bytes charged)
-//   Resident bytes held; charged to resident_bytes. If pin count is 0 it is on the LRU list.
+//   Resident bytes held; charged to resident_bytes, and in the LRU (store/byte_lru.h), where
+//            it is a victim while its pin count is 0.
 //   Failed   the source returned an error; the Status is remembered and returned by every pin()
 //            of that id (no retry); nothing charged.
 // Invariants (all under one mutex):
-//   - a page with pin count > 0 is never evicted and is never on the LRU list;
+//   - a page with pin count > 0 is never evicted;
 //   - resident_bytes = sum of sizes of Resident entries; pinned_bytes = those with pins > 0;
 //   - after every public call returns, resident_bytes <= budget, unless everything resident is
 //     pinned except at most one page: the most recently used unpinned page is kept even when it
 //     alone breaks the budget, so that a budget smaller than one page still makes progress
 //     (request() -> ready() -> pin()) instead of evicting each page as it arrives. Pinned pages
 //     may push resident_bytes above the budget for as long as they are pinned.
-// Counters are atomics so that a stats reader need not take the lock.
+// Counters are atomics so that a stats reader need not take the lock; resident_bytes_ and
+// pinned_bytes_ mirror lru_'s after every change.
 #pragma once
 
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
-#include <list>
 #include <mutex>
 #include <optional>
 #include <span>
@@ -32,6 +33,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "store/byte_lru.h"
 #include "store/page_id.h"
 #include "store/status.h"
 
@@ -131,10 +133,8 @@ class PageCache {
   enum class State { Queued, Loading, Resident, Failed };
   struct Entry {
     State state = State::Queued;
-    int pins = 0;
     PageData data;
     Status error;
-    std::list<PageId>::iterator lru_pos;  // valid iff Resident and pins == 0
   };
 
   void unpin(PageId id);
@@ -142,7 +142,7 @@ class PageCache {
   void load_and_publish(std::unique_lock<std::mutex>& lock, PageId id);
   Pin pin_locked(PageId id, Entry& e);  // REQUIRES: lock held, e Resident
   void evict_to_budget();               // REQUIRES: lock held
-  void evict_lru();                     // REQUIRES: lock held, lru_ not empty
+  void evict_lru();                     // REQUIRES: lock held, lru_.evictable() > 0
   void loader_main();
 
   PageSource& source_;
@@ -152,7 +152,7 @@ class PageCache {
   std::condition_variable loaded_;    // an entry left the Loading state
   std::condition_variable work_;      // the queue grew or stop_ was set
   std::unordered_map<PageId, Entry> entries_;
-  std::list<PageId> lru_;             // unpinned resident pages, front = most recently used
+  ByteLru<PageId> lru_;               // the Resident entries: sizes, pins, order of use
   std::deque<PageId> queue_;
   bool stop_ = false;
   std::vector<std::thread> loaders_;
