@@ -7,8 +7,10 @@
 
 #include "src/core/byte_io.h"
 
+#include "store/byte_lru.h"
 #include "store/page_format.h"
 #include "store/store_file.h"
+#include "store/store_page_source.h"
 
 #include <fmt/format.h>
 #include <openvdb/openvdb.h>
@@ -109,11 +111,6 @@ struct CollisionGrid::Impl {
     uint64_t page = 0;
     uint64_t active_voxels = 0;
   };
-  struct Resident {
-    TreePtr tree;  // null: the brick could not be read, and reads as solid
-    uint64_t bytes = 0;
-    uint64_t last_use = 0;
-  };
 
   double voxel = 1.0;
   int band = 3;
@@ -129,8 +126,9 @@ struct CollisionGrid::Impl {
 
   mutable std::atomic<uint64_t> queries{0};
   mutable std::mutex mu;  // guards everything below
-  mutable std::unordered_map<uint32_t, Resident> cache;
-  mutable uint64_t clock = 0;
+  // Resident bricks by index, with their memory; a null tree: the brick could not be read, and
+  // reads as solid. Bricks that cost nothing (failed ones) are pinned: they stay.
+  mutable store::ByteLru<uint32_t, TreePtr> cache;
   mutable Counters stats;
   mutable Status first_error;
 
@@ -169,43 +167,38 @@ struct CollisionGrid::Impl {
       constant = float(far);
       return nullptr;
     }
+    const uint32_t index = at->second;
     const std::lock_guard<std::mutex> lock(mu);
-    const auto hit = cache.find(at->second);
-    if (hit != cache.end()) {
-      hit->second.last_use = ++clock;
-      constant = 0.0f;
-      return hit->second.tree;
+    constant = 0.0f;
+    if (const TreePtr* hit = cache.find(index)) {
+      cache.touch(index);
+      return *hit;
     }
     const auto start = std::chrono::steady_clock::now();
-    Result<TreePtr> tree = read_brick(bricks[at->second]);
+    Result<TreePtr> tree = read_brick(bricks[index]);
     stats.load_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     ++stats.loads;
-    Resident r;
-    r.last_use = ++clock;
+    TreePtr resident;
+    uint64_t bytes = 0;
     if (tree) {
-      r.tree = *tree;
-      r.bytes = r.tree->memUsage();
-      stats.largest_brick_bytes = std::max(stats.largest_brick_bytes, r.bytes);
+      resident = *tree;
+      bytes = resident->memUsage();
+      stats.largest_brick_bytes = std::max(stats.largest_brick_bytes, bytes);
     } else {
       ++stats.errors;
       if (first_error.is_ok()) first_error = tree.status();
     }
-    stats.resident_bytes += r.bytes;
-    cache.emplace(at->second, r);
-    // Least recently used first, never the brick just read; failed bricks cost nothing and stay.
-    while (stats.resident_bytes > budget) {
-      auto victim = cache.end();
-      for (auto it = cache.begin(); it != cache.end(); ++it) {
-        if (it->first == at->second || it->second.bytes == 0) continue;
-        if (victim == cache.end() || it->second.last_use < victim->second.last_use) victim = it;
-      }
-      if (victim == cache.end()) break;
-      stats.resident_bytes -= victim->second.bytes;
+    cache.insert(index, bytes, resident);
+    if (bytes == 0) cache.pin(index);
+    // Least recently used first, never the brick just read (the newest).
+    while (cache.over_budget()) {
+      const std::optional<uint32_t> victim = cache.oldest();
+      if (!victim || *victim == index) break;
+      cache.erase(*victim);
       ++stats.evictions;
-      cache.erase(victim);
     }
-    constant = 0.0f;
-    return r.tree;
+    stats.resident_bytes = cache.resident_bytes();
+    return resident;
   }
 
   // Reads voxels for one query, holding every brick it has touched until it is destroyed.
@@ -345,7 +338,9 @@ struct CollisionGrid::Impl {
   }
 };
 
-CollisionGrid::CollisionGrid(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+CollisionGrid::CollisionGrid(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {
+  impl_->cache.set_budget(impl_->budget);
+}
 CollisionGrid::CollisionGrid(CollisionGrid&&) noexcept = default;
 CollisionGrid& CollisionGrid::operator=(CollisionGrid&&) noexcept = default;
 CollisionGrid::~CollisionGrid() = default;
@@ -566,16 +561,19 @@ Result<std::unique_ptr<CollisionGrid>> open_collision_grid(const store::StoreRea
                                                            uint64_t budget_bytes) {
   auto section = reader.read_section("sdf");
   if (!section) return section.status();
-  BrickSource source = [&reader](uint64_t page) -> Result<std::vector<uint8_t>> {
+  // Bricks come through the store's page source, as cells do (it is thread-safe, as the
+  // queries that fetch bricks need).
+  auto pages = std::make_shared<store::StorePageSource>(reader);
+  BrickSource source = [&reader, pages](uint64_t page) -> Result<std::vector<uint8_t>> {
     if (page >= reader.page_count()) {
       return Status::corruption(reader.name() + ": page " + std::to_string(page) + " does not exist");
     }
-    auto block = reader.read_page(page);
+    auto block = pages->load(page);
     if (!block) return block.status();
     if (block->codec != sdf_format::kBrickCodec) {
       return Status::corruption(reader.name() + ": page " + std::to_string(page) + " is not a collision brick");
     }
-    return std::move(block->payload);
+    return std::move(block->bytes);
   };
   auto grid = CollisionGrid::open(*section, std::move(source), budget_bytes);
   if (!grid) return grid.status().prefixed(reader.name() + ": ");
