@@ -54,7 +54,7 @@ struct PagedWorld::Decoded {
 PagedWorld::PagedWorld(const StoreModel& model, const PagedWorldOptions& options)
     : model_(model), cell_build_(options.cell_build), budget_(options.budget_bytes) {
   const uint64_t compressed = std::max(kMinCompressedShare, budget_ / 8);
-  decoded_budget_ = budget_ > compressed ? budget_ - compressed : 0;
+  const uint64_t decoded_budget = budget_ > compressed ? budget_ - compressed : 0;
   source_ = std::make_unique<store::StorePageSource>(model.reader());
   cache_ = std::make_unique<store::PageCache>(*source_, std::min(compressed, budget_), options.io_threads);
 
@@ -83,7 +83,7 @@ PagedWorld::PagedWorld(const StoreModel& model, const PagedWorldOptions& options
   }
   slot_.assign(top_cells_, -1);
   failed_.assign(top_cells_, 0);
-  last_touched_.assign(top_cells_, 0);
+  lru_ = CellLru(top_cells_, decoded_budget);
   decoded_size_.assign(top_cells_, 0);
   wanted_flag_ = std::make_unique<std::atomic<uint8_t>[]>(top_cells_);
   for (size_t c = 0; c < top_cells_; ++c) wanted_flag_[c].store(0, std::memory_order_relaxed);
@@ -91,7 +91,7 @@ PagedWorld::PagedWorld(const StoreModel& model, const PagedWorldOptions& options
   // The world's arrays never hold more than the decoded share: reserve what each could reach
   // within it once (address space only: untouched pages cost no memory), so that growing never
   // copies them. Capped, so that a huge --cache does not ask for absurd address space.
-  const uint64_t share = std::min<uint64_t>(decoded_budget_, uint64_t{16} << 30);
+  const uint64_t share = std::min<uint64_t>(decoded_budget, uint64_t{16} << 30);
   auto reserve = [&](auto& v, uint64_t bytes_per_item) {
     v.reserve(v.size() + static_cast<size_t>(share / bytes_per_item) + 1);
   };
@@ -146,22 +146,31 @@ bool PagedWorld::sync(std::chrono::steady_clock::time_point deadline) { return s
 
 bool PagedWorld::sync_evicting() { return sync_impl(std::chrono::steady_clock::time_point::max(), true); }
 
+bool PagedWorld::unlink_oldest(uint64_t target) {
+  while (lru_.bytes() > target) {
+    const std::optional<uint32_t> victim = lru_.oldest();
+    if (!victim) return false;
+    unlink(*victim);
+  }
+  return true;
+}
+
 bool PagedWorld::evict_for(uint64_t bytes, const std::vector<uint32_t>& keep) {
-  if (bytes > decoded_budget_) return false;
-  if (decoded_bytes_ + garbage_bytes_ + bytes <= decoded_budget_) return true;
-  std::vector<uint32_t> order;
-  for (const Graft& g : live_) {
-    if (std::find(keep.begin(), keep.end(), g.cell) == keep.end()) order.push_back(g.cell);
+  const uint64_t budget = lru_.budget();
+  if (bytes > budget) return false;
+  if (lru_.bytes() + garbage_bytes_ + bytes <= budget) return true;
+  const uint64_t target = budget - bytes;
+  if (!unlink_oldest(target)) {
+    // Every cell left was touched in this frame: they go too, in ascending order (the LRU's
+    // order among cells of one frame), except those grafted by this sync.
+    for (const uint32_t c : lru_.touched_cells()) {
+      if (lru_.bytes() <= target) break;
+      if (!lru_.resident(c) || std::find(keep.begin(), keep.end(), c) != keep.end()) continue;
+      unlink(c);
+    }
   }
-  std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
-    return last_touched_[a] != last_touched_[b] ? last_touched_[a] < last_touched_[b] : a < b;
-  });
-  for (const uint32_t c : order) {
-    if (decoded_bytes_ + bytes <= decoded_budget_) break;
-    unlink(c);
-  }
-  if (decoded_bytes_ + bytes > decoded_budget_) return false;
-  if (decoded_bytes_ + garbage_bytes_ + bytes > decoded_budget_) compact();
+  if (lru_.bytes() > target) return false;
+  if (lru_.bytes() + garbage_bytes_ + bytes > budget) compact();
   return true;
 }
 
@@ -216,12 +225,12 @@ bool PagedWorld::sync_impl(std::chrono::steady_clock::time_point deadline, bool 
         missing_[d.cell] = 0;
         ++counters_.page_errors;
         changed = true;
-      } else if (decoded_bytes_ + garbage_bytes_ + d.bytes <= decoded_budget_ ||
+      } else if (lru_.bytes() + garbage_bytes_ + d.bytes <= lru_.budget() ||
                  (evict && evict_for(d.bytes, grafted))) {
         graft(d);
         grafted.push_back(d.cell);
         changed = true;
-      } else if (evict && d.bytes <= decoded_budget_) {
+      } else if (evict && d.bytes <= lru_.budget()) {
         // Full of cells grafted by this call, which the caller has not drawn yet: the rest
         // comes in with the next call.
         later.push_back(d.cell);
@@ -306,9 +315,8 @@ void PagedWorld::graft(Decoded& d) {
   missing_[d.cell] = 0;
   slot_[d.cell] = static_cast<int32_t>(live_.size());
   live_.push_back(g);
-  last_touched_[d.cell] = frame_;
+  lru_.insert(d.cell, g.bytes);
   decoded_size_[d.cell] = g.bytes;
-  decoded_bytes_ += g.bytes;
   ++counters_.cells_paged_in;
   counters_.primitives_paged_in += g.prims;
 }
@@ -327,7 +335,7 @@ void PagedWorld::unlink(uint32_t cell) {
   slot_[live_[size_t(s)].cell] = s;
   live_.pop_back();
   slot_[cell] = -1;
-  decoded_bytes_ -= g.bytes;
+  lru_.erase(cell);
   garbage_bytes_ += g.bytes;
   ++counters_.cells_evicted;
 }
@@ -335,7 +343,7 @@ void PagedWorld::unlink(uint32_t cell) {
 void PagedWorld::note_touched(const CellMarks& marks) {
   const size_t n = std::min(marks.size(), owner_.size());
   for (size_t c = 0; c < n; ++c) {
-    if (marks.marked(static_cast<int32_t>(c))) last_touched_[owner_[c]] = frame_;
+    if (marks.marked(static_cast<int32_t>(c))) lru_.touch(owner_[c]);
   }
 }
 
@@ -356,20 +364,11 @@ std::vector<uint32_t> PagedWorld::touched_store_cells(const CellMarks& marks) co
 
 uint64_t PagedWorld::end_frame(const CellMarks& marks) {
   note_touched(marks);
-  uint64_t touched = 0;
-  for (size_t c = 0; c < top_cells_; ++c) touched += last_touched_[c] == frame_ ? 1 : 0;
-  touched_bytes_ = 0;
-  for (const Graft& g : live_) touched_bytes_ += last_touched_[g.cell] == frame_ ? g.bytes : 0;
-  return touched;
+  touched_bytes_ = lru_.touched_bytes();
+  return lru_.touched_cells().size();
 }
 
-std::vector<uint32_t> PagedWorld::touched_this_frame() const {
-  std::vector<uint32_t> out;
-  for (uint32_t c = 0; c < top_cells_; ++c) {
-    if (last_touched_[c] == frame_) out.push_back(c);
-  }
-  return out;
-}
+std::vector<uint32_t> PagedWorld::touched_this_frame() const { return lru_.touched_cells(); }
 
 void PagedWorld::forget_dropped() {
   for (const uint32_t c : dropped_) wanted_flag_[c].store(0, std::memory_order_release);
@@ -377,24 +376,14 @@ void PagedWorld::forget_dropped() {
 }
 
 void PagedWorld::begin_frame(CellMarks& marks) {
-  ++frame_;
+  lru_.begin_frame();
   forget_dropped();
   // Keep a quarter of the decoded share free for the cells this frame pages in: when live
   // cells and garbage fill more than three quarters, unlink the least recently touched down
-  // to half and compact.
-  if (decoded_bytes_ + garbage_bytes_ > decoded_budget_ / 4 * 3) {
-    std::vector<uint32_t> order;
-    order.reserve(live_.size());
-    for (const Graft& g : live_) order.push_back(g.cell);
-    std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) {
-      return last_touched_[a] != last_touched_[b] ? last_touched_[a] < last_touched_[b] : a < b;
-    });
-    for (const uint32_t c : order) {
-      if (decoded_bytes_ <= decoded_budget_ / 2) break;
-      unlink(c);
-    }
-  }
-  if (garbage_bytes_ > 0 && decoded_bytes_ + garbage_bytes_ > decoded_budget_ / 4 * 3) compact();
+  // to half and compact. (No cell is touched in the new frame yet: all may go.)
+  const uint64_t budget = lru_.budget();
+  if (lru_.bytes() + garbage_bytes_ > budget / 4 * 3) unlink_oldest(budget / 2);
+  if (garbage_bytes_ > 0 && lru_.bytes() + garbage_bytes_ > budget / 4 * 3) compact();
   marks.resize(tree_.cells_.size());
 }
 
@@ -402,7 +391,7 @@ bool PagedWorld::reclaim_untouched(CellMarks& marks) {
   note_touched(marks);
   std::vector<uint32_t> stale;
   for (const Graft& g : live_) {
-    if (last_touched_[g.cell] != frame_) stale.push_back(g.cell);
+    if (!lru_.touched(g.cell)) stale.push_back(g.cell);
   }
   if (stale.empty() && garbage_bytes_ == 0) return false;
   for (const uint32_t c : stale) unlink(c);

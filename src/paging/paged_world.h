@@ -17,9 +17,10 @@
 // Memory, one budget for everything paged: the compressed pages the PageCache holds (an eighth
 // of the budget, at least 1 MiB) plus the decoded, grafted cells (the rest). resident_bytes()
 // is their sum and stays within the budget: before a cell is grafted, cells no frame touched
-// since the oldest are unlinked (LRU by the frame that last touched them); cells touched in the
-// current frame are never evicted, so when the current view alone needs more than the budget
-// the newcomer is dropped (it stays missing; the frame degrades to fewer samples) instead.
+// since the oldest are unlinked (LRU by the frame that last touched them, ties by store cell:
+// CellLru, cell_lru.h); cells touched in the current frame are never evicted, so when the
+// current view alone needs more than the budget the newcomer is dropped (it stays missing; the
+// frame degrades to fewer samples) instead.
 // Unlinked subtrees leave garbage in the arrays; compact() at a frame boundary reclaims it.
 //
 // Threads: missing() and want() are called by render workers while a frame slice runs; every
@@ -31,6 +32,7 @@
 #include "src/engine/kdtree.h"
 #include "src/core/sample_buffer.h"
 #include "src/core/scene.h"
+#include "src/paging/cell_lru.h"
 #include "src/paging/store_model.h"
 #include "store/page_cache.h"
 #include "store/store_page_source.h"
@@ -91,7 +93,7 @@ class PagedWorld final : public CellGate {
   bool sync_evicting();
   uint64_t generation() const { return generation_; }
   // Records that the current frame used store cell `c` (LRU), for renderers without CellMarks.
-  void touch(uint32_t store_cell) { last_touched_[store_cell] = frame_; }
+  void touch(uint32_t store_cell) { lru_.touch(store_cell); }
   // Bytes store cell c took decoded and refined when it was last paged in (0: never was).
   uint64_t decoded_size(uint32_t store_cell) const { return decoded_size_[store_cell]; }
   // Store cells touched (or paged in) since the last begin_frame().
@@ -124,12 +126,12 @@ class PagedWorld final : public CellGate {
 
   PagingCounters take_counters();
   uint64_t budget_bytes() const { return budget_; }
-  uint64_t decoded_bytes() const { return decoded_bytes_; }
+  uint64_t decoded_bytes() const { return lru_.bytes(); }
   // Decoded bytes of the cells the frame touched, as of the last end_frame().
   uint64_t touched_bytes() const { return touched_bytes_; }
   // Compressed pages held by the cache plus decoded cells: never above budget_bytes() after
   // sync() returns (the cache's own rule: see store/page_cache.h).
-  uint64_t resident_bytes() const { return cache_->resident_bytes() + decoded_bytes_; }
+  uint64_t resident_bytes() const { return cache_->resident_bytes() + lru_.bytes(); }
   uint64_t pinned_bytes() const { return cache_->pinned_bytes(); }
   store::PageCacheStats cache_stats() const { return cache_->stats(); }
   size_t resident_cells() const;
@@ -143,6 +145,9 @@ class PagedWorld final : public CellGate {
   bool sync_impl(std::chrono::steady_clock::time_point deadline, bool evict);
   // Unlinks live cells other than `keep` (LRU first) and compacts until `bytes` more fit.
   bool evict_for(uint64_t bytes, const std::vector<uint32_t>& keep);
+  // Unlinks cells not touched in this frame, LRU first, until at most `target` decoded bytes
+  // are live. False when the cells left (all touched in this frame) still take more.
+  bool unlink_oldest(uint64_t target);
   void graft(Decoded& d);
   void unlink(uint32_t cell);
   void note_touched(const CellMarks& marks);
@@ -153,8 +158,7 @@ class PagedWorld final : public CellGate {
   std::unique_ptr<store::PageCache> cache_;
   KdBuildOptions cell_build_;
   uint64_t budget_ = 0;         // total
-  uint64_t decoded_budget_ = 0; // share of the decoded cells
-  uint64_t decoded_bytes_ = 0;
+  CellLru lru_;                 // the live cells' bytes within the decoded share, order of use
   uint64_t garbage_bytes_ = 0;
   uint64_t touched_bytes_ = 0;
   std::vector<uint32_t> dropped_;        // store cells dropped for lack of room this frame
@@ -169,9 +173,7 @@ class PagedWorld final : public CellGate {
   std::vector<int32_t> slot_;            // store cell -> index in live_, or -1
   std::vector<Graft> live_;
   std::vector<uint8_t> failed_;          // store cell
-  std::vector<uint64_t> last_touched_;   // store cell -> frame
   std::vector<uint64_t> decoded_size_;   // store cell -> bytes when last grafted
-  uint64_t frame_ = 1;
   uint64_t generation_ = 0;              // compactions so far
 
   std::unique_ptr<std::atomic<uint8_t>[]> wanted_flag_;  // store cell: in wanted_ already
