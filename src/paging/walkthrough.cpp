@@ -169,12 +169,7 @@ FrameReport Walkthrough::culling_frame(const Camera& camera) {
   PagedCullSource source(*world_);
   const CullCounters cc = culler_->render(view_, source);
   cull_image_.clear();
-  reconstructed_ = false;
-  const auto finish_start = Clock::now();
-  if (options_.reconstruct_each_frame) {
-    image();
-    r.reconstruct_ms = ms_since(finish_start);
-  }
+  reconstruct_for_display(r);
   r.cells_touched = world_->end_frame(CellMarks());
   r.pinned_bytes = world_->pinned_bytes();
   r.primitives_tested = cc.primitives_touched;
@@ -218,23 +213,48 @@ void Walkthrough::report_oracle(FrameReport& r) {
   if (!oracle_frame_->cells.empty()) r.oracle_ratio = double(r.cells_touched) / double(oracle_frame_->cells.size());
 }
 
+// One frame's clock: when the job queue and paging in must stop, and the quality floor.
+struct Walkthrough::FramePlan {
+  Clock::time_point start;
+  // The job queue stops here; moved once, by kFloorMaxOvertime frame times, for the floor.
+  Clock::time_point deadline = Clock::time_point::max();
+  // Paging in stops here while other work is queued.
+  Clock::time_point page_in_deadline = Clock::time_point::max();
+  bool wait_for_all = false;   // wait for every page the image needs (sync paging, no budget)
+  uint64_t floor_samples = 0;  // WalkOptions::min_sampled of the view (moving frames, time peg)
+  bool overtime = false;       // past the pegged time to reach floor_samples
+};
+
 FrameReport Walkthrough::frame(const Camera& camera) {
   if (culler_) return culling_frame(camera);
   const auto start = Clock::now();
-  const FrameBudget& budget = options_.budget;
-  const bool unbounded = budget.ms <= 0.0 && budget.samples == 0;
-  const bool wait_for_all = options_.sync_paging || unbounded;
-  // A pegged frame time covers everything: the job queue stops early by what reconstruction
-  // and bookkeeping took lately (a running estimate), so the frame ends on time.
-  const double work_ms = std::max(0.5 * budget.ms, budget.ms - finish_ms_);
-  auto deadline = budget.ms > 0.0 ? start + std::chrono::duration_cast<Clock::duration>(
-                                                std::chrono::duration<double, std::milli>(work_ms))
-                                  : Clock::time_point::max();
   FrameReport r;
   r.frame = frames_++;
   r.eye = camera.eye;
   const std::optional<Camera> previous = last_camera_;
   const bool still = previous && same_camera(*previous, camera);
+  r.continued = !choose_image(camera, still);
+  last_camera_ = camera;
+  FramePlan plan = plan_frame(start, still);
+  Counters counters;
+  r.stall_ms = render_image(plan, counters);
+  if (previous) prefetch(camera, *previous);
+  const auto finish_start = Clock::now();
+  reconstruct_for_display(r);
+  r.cells_touched = world_->end_frame(marks_);
+  report_image(r, counters);
+  report_paging(r);
+  r.frame_ms = ms_since(start);
+  if (plan.overtime) r.floor_ms = std::max(0.0, r.frame_ms - options_.budget.ms);
+  // The estimate follows increases at once and decreases slowly (a late frame costs more
+  // than a few samples).
+  const double finish = ms_since(finish_start);
+  finish_ms_ = finish > finish_ms_ ? finish : 0.9 * finish_ms_ + 0.1 * finish;
+  report_oracle(r);
+  return r;
+}
+
+bool Walkthrough::choose_image(const Camera& camera, bool still) {
   const bool lights = shader_->effects().shadows && options_.shadows;
   if (!still) {
     view_ = View(camera, options_.width, options_.height);
@@ -242,47 +262,47 @@ FrameReport Walkthrough::frame(const Camera& camera) {
   } else if (caster_->complete() && lights && !image_shadows_) {
     start_image(true);  // the camera stopped and the image is complete: now the deferred effects
   } else {
-    r.continued = true;
+    return false;
   }
-  last_camera_ = camera;
-  // The quality floor (WalkOptions::min_sampled) holds for moving frames under a time peg.
-  const uint64_t floor_samples =
-      budget.ms > 0.0 && !still ? static_cast<uint64_t>(options_.min_sampled * double(view_.pixels())) : 0;
-  bool overtime = false;
+  return true;
+}
 
-  // Paging in (decode + subtree build) is frame time too: with a pegged frame time it gets at
-  // most a quarter of the frame while other work is queued; the rest waits for the next frame
-  // (its work stays parked), so a burst of new cells costs samples over a few frames instead of
-  // most of one.
-  const auto page_in_deadline =
-      budget.ms > 0.0 ? std::min(deadline, start + std::chrono::duration_cast<Clock::duration>(
-                                                       std::chrono::duration<double, std::milli>(0.25 * budget.ms)))
-                      : deadline;
-  Counters counters;
+Walkthrough::FramePlan Walkthrough::plan_frame(Clock::time_point start, bool still) const {
+  const FrameBudget& budget = options_.budget;
+  const auto after = [&](double ms) {
+    return start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double, std::milli>(ms));
+  };
+  FramePlan plan;
+  plan.start = start;
+  plan.wait_for_all = options_.sync_paging || (budget.ms <= 0.0 && budget.samples == 0);
+  if (budget.ms > 0.0) {
+    // A pegged frame time covers everything: the job queue stops early by what reconstruction
+    // and bookkeeping took lately (a running estimate), so the frame ends on time.
+    plan.deadline = after(std::max(0.5 * budget.ms, budget.ms - finish_ms_));
+    // Paging in (decode + subtree build) is frame time too: it gets at most a quarter of the
+    // frame while other work is queued; the rest waits for the next frame (its work stays
+    // parked), so a burst of new cells costs samples over a few frames instead of most of one.
+    plan.page_in_deadline = std::min(plan.deadline, after(0.25 * budget.ms));
+    // The quality floor (WalkOptions::min_sampled) holds for moving frames under a time peg.
+    if (!still) plan.floor_samples = static_cast<uint64_t>(options_.min_sampled * double(view_.pixels()));
+  }
+  return plan;
+}
+
+double Walkthrough::render_image(FramePlan& plan, Counters& counters) {
+  const FrameBudget& budget = options_.budget;
+  double stall_ms = 0.0;
   int restarts = 0;
   while (true) {
     // With nothing else to do, paging in may use the rest of the frame.
-    if (world_->sync(caster_->runnable() ? page_in_deadline : deadline)) {
+    if (world_->sync(caster_->runnable() ? plan.page_in_deadline : plan.deadline)) {
       caster_->tree_changed();
       caster_->resume_parked();
     }
-    if (caster_->complete()) break;
-    if (overtime && image_samples_ >= floor_samples) break;
-    if (Clock::now() >= deadline) {
-      if (overtime || image_samples_ >= floor_samples) break;
-      overtime = true;
-      deadline = start + std::chrono::duration_cast<Clock::duration>(
-                             std::chrono::duration<double, std::milli>((1.0 + kFloorMaxOvertime) * budget.ms));
-    }
+    if (caster_->complete() || out_of_time(plan)) break;
     if (budget.samples > 0 && counters.samples >= budget.samples) break;
     if (caster_->runnable()) {
-      FrameBudget slice;
-      if (budget.ms > 0.0) slice.ms = std::max(0.01, std::chrono::duration<double, std::milli>(deadline - Clock::now()).count());
-      if (budget.samples > 0) slice.samples = budget.samples - counters.samples;
-      if (overtime) slice.samples = floor_samples - image_samples_;
-      const uint64_t before = counters.samples;
-      caster_->run(slice, counters);
-      image_samples_ += counters.samples - before;
+      run_slice(plan, counters);
       continue;
     }
     // Only parked work is left.
@@ -297,26 +317,53 @@ FrameReport Walkthrough::frame(const Camera& camera) {
       }
       break;
     }
-    r.stall_ms += world_->wait_for_pages(wait_for_all ? Clock::time_point::max() : deadline);
+    stall_ms += world_->wait_for_pages(plan.wait_for_all ? Clock::time_point::max() : plan.deadline);
   }
-  // Prefetch: the cells the eye will be in over the next frames if it keeps moving as it did.
-  // A frame whose eye cell is missing can do nothing until that page is in; asking early
-  // keeps walks from stalling there. Prefetched cells are paged in, not touched.
-  if (previous) {
-    const Vec3 step = camera.eye - previous->eye;
-    for (int ahead = 1; ahead <= kPrefetchFrames && glm::length(step) > 0.0; ++ahead) {
-      const int32_t c = world_->tree().locate(camera.eye + double(ahead) * step, step);
-      if (c != KdTree::kNone && world_->missing(c)) world_->want(c);
-    }
+  return stall_ms;
+}
+
+bool Walkthrough::out_of_time(FramePlan& plan) const {
+  if (plan.overtime && image_samples_ >= plan.floor_samples) return true;
+  if (Clock::now() < plan.deadline) return false;
+  if (plan.overtime || image_samples_ >= plan.floor_samples) return true;
+  plan.overtime = true;
+  plan.deadline = plan.start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double, std::milli>(
+                                   (1.0 + kFloorMaxOvertime) * options_.budget.ms));
+  return false;
+}
+
+void Walkthrough::run_slice(const FramePlan& plan, Counters& counters) {
+  const FrameBudget& budget = options_.budget;
+  FrameBudget slice;
+  if (budget.ms > 0.0) slice.ms = std::max(0.01, std::chrono::duration<double, std::milli>(plan.deadline - Clock::now()).count());
+  if (budget.samples > 0) slice.samples = budget.samples - counters.samples;
+  if (plan.overtime) slice.samples = plan.floor_samples - image_samples_;
+  const uint64_t before = counters.samples;
+  caster_->run(slice, counters);
+  image_samples_ += counters.samples - before;
+}
+
+// The cells the eye will be in over the next frames if it keeps moving as it did. A frame whose
+// eye cell is missing can do nothing until that page is in; asking early keeps walks from
+// stalling there. Prefetched cells are paged in, not touched.
+void Walkthrough::prefetch(const Camera& camera, const Camera& previous) {
+  const Vec3 step = camera.eye - previous.eye;
+  for (int ahead = 1; ahead <= kPrefetchFrames && glm::length(step) > 0.0; ++ahead) {
+    const int32_t c = world_->tree().locate(camera.eye + double(ahead) * step, step);
+    if (c != KdTree::kNone && world_->missing(c)) world_->want(c);
   }
-  const auto finish_start = Clock::now();
+}
+
+void Walkthrough::reconstruct_for_display(FrameReport& r) {
   reconstructed_ = false;
   if (options_.reconstruct_each_frame) {
+    const auto t = Clock::now();
     image();
-    r.reconstruct_ms = ms_since(finish_start);
+    r.reconstruct_ms = ms_since(t);
   }
+}
 
-  r.cells_touched = world_->end_frame(marks_);
+void Walkthrough::report_image(FrameReport& r, const Counters& counters) const {
   r.pinned_bytes = world_->pinned_bytes() + world_->touched_bytes();
   r.primitives_tested = counters.primitives_tested;
   r.nodes_touched = counters.cell_visits;
@@ -331,15 +378,6 @@ FrameReport Walkthrough::frame(const Camera& camera) {
   r.complete = caster_->complete();
   r.shadows = image_shadows_;
   r.parked = caster_->parked();
-  report_paging(r);
-  r.frame_ms = ms_since(start);
-  if (overtime) r.floor_ms = std::max(0.0, r.frame_ms - budget.ms);
-  // The estimate follows increases at once and decreases slowly (a late frame costs more
-  // than a few samples).
-  const double finish = ms_since(finish_start);
-  finish_ms_ = finish > finish_ms_ ? finish : 0.9 * finish_ms_ + 0.1 * finish;
-  report_oracle(r);
-  return r;
 }
 
 const std::vector<Rgb>& Walkthrough::image() {

@@ -33,6 +33,7 @@
 
 #include <nlohmann/json_fwd.hpp>
 
+#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -164,9 +165,27 @@ class Walkthrough {
   const OracleFrame* last_oracle() const { return oracle_frame_ ? &*oracle_frame_ : nullptr; }
 
  private:
+  struct FramePlan;
   Walkthrough() = default;
   void start_image(bool shadows);
   FrameReport culling_frame(const Camera& camera);
+  // The steps of frame(), in order.
+  // Starts a new image for a moved camera, or the deferred effects for a stopped one whose
+  // image is complete; returns false when the frame continues the current image.
+  bool choose_image(const Camera& camera, bool still);
+  // The frame's deadlines and quality floor, from its start and the budget.
+  FramePlan plan_frame(std::chrono::steady_clock::time_point start, bool still) const;
+  // Runs job slices, pages in and waits for pages until the image is complete or the frame's
+  // budget is spent; returns the time spent waiting for pages (stall_ms).
+  double render_image(FramePlan& plan, Counters& counters);
+  // True when the frame must end now; moves the deadline once for the quality floor.
+  bool out_of_time(FramePlan& plan) const;
+  void run_slice(const FramePlan& plan, Counters& counters);
+  // Wants the cells the eye reaches in the next frames if it keeps its last step.
+  void prefetch(const Camera& camera, const Camera& previous);
+  // Marks the displayed image stale, and rebuilds it now if every frame displays one.
+  void reconstruct_for_display(FrameReport& r);
+  void report_image(FrameReport& r, const Counters& counters) const;
   void report_paging(FrameReport& r);
   void report_oracle(FrameReport& r);
 
