@@ -80,7 +80,7 @@ class PortalGraph {
   static Result<PortalGraph> from_sidecar(const std::string& path);
 
   // The binary section layout of store/FORMAT.md ("portals"): magic, version, payload size and
-  // checksum, then the rooms and portals as little-endian doubles. Only the parts are stored;
+  // checksum (store/section_frame.h), then the rooms and portals as little-endian doubles. Only the parts are stored;
   // the lookup structures are rebuilt on load.
   std::vector<uint8_t> serialize() const;
   // Safe on untrusted bytes: truncated, damaged or inconsistent input gives Corruption (a newer
