@@ -222,21 +222,32 @@ Result<PortalGraph> PortalGraph::create(std::vector<Aabb> rooms, std::vector<Por
 }
 
 Status PortalGraph::finish() {
+  double magnitude = 0.0;
+  if (Status s = check_rooms(magnitude); !s) return s;
+  if (Status s = orient_portals(magnitude); !s) return s;
+  build_adjacency();
+  build_locator();
+  return Status::ok();
+}
+
+Status PortalGraph::check_rooms(double& magnitude) {
   if (!(std::isfinite(wall_) && wall_ >= 0.0 && std::isfinite(slab_) && slab_ >= 0.0)) {
     return Status::corruption(fmt::format("wall thickness {} or slab thickness {} is not a length", wall_, slab_));
   }
   if (rooms_.size() >= UINT32_MAX / 2 || portals_.size() >= UINT32_MAX / 2) {
     return Status::corruption(fmt::format("{} rooms and {} portals: too many", rooms_.size(), portals_.size()));
   }
-  double magnitude = 0.0;
+  magnitude = 0.0;
   for (size_t r = 0; r < rooms_.size(); ++r) {
     if (!proper(rooms_[r])) return Status::corruption(fmt::format("room {}: bounds empty or not finite", r));
     magnitude = std::max(magnitude, rooms_[r].magnitude());
   }
   slack_ = 1e-9 * (1.0 + magnitude);
+  return Status::ok();
+}
 
+Status PortalGraph::orient_portals(double magnitude) {
   normals_.resize(portals_.size());
-  std::vector<uint32_t> degree(rooms_.size() + 1, 0);
   for (size_t i = 0; i < portals_.size(); ++i) {
     const Portal& p = portals_[i];
     const auto [a, b] = p.rooms;
@@ -265,22 +276,28 @@ Status PortalGraph::finish() {
       return Status::corruption(fmt::format("portal {}: rooms {} and {} are not on opposite sides of it", i, a, b));
     }
     normals_[i] = n;
-    ++degree[a];
-    ++degree[b];
   }
+  return Status::ok();
+}
 
+void PortalGraph::build_adjacency() {
   adjacency_first_.assign(rooms_.size() + 1, 0);
-  for (size_t r = 0; r < rooms_.size(); ++r) adjacency_first_[r + 1] = adjacency_first_[r] + degree[r];
+  for (const Portal& p : portals_) {
+    for (uint32_t room : p.rooms) ++adjacency_first_[room + 1];
+  }
+  for (size_t r = 0; r < rooms_.size(); ++r) adjacency_first_[r + 1] += adjacency_first_[r];
   adjacency_.resize(adjacency_first_.back());
   std::vector<uint32_t> fill(adjacency_first_.begin(), adjacency_first_.end() - 1);
   for (uint32_t i = 0; i < portals_.size(); ++i) {
     for (uint32_t room : portals_[i].rooms) adjacency_[fill[room]++] = i;
   }
+}
 
+void PortalGraph::build_locator() {
   // The locator: a uniform grid whose cells are about a typical room in size (at most a few
   // cells per box), every box listed in each grid cell it overlaps.
   locator_ = Locator{};
-  if (rooms_.empty()) return Status::ok();
+  if (rooms_.empty()) return;
   const uint32_t item_count = static_cast<uint32_t>(rooms_.size() + portals_.size());
   auto item_box = [&](uint32_t item) {
     return item < rooms_.size() ? room_region(item) : doorway(item - static_cast<uint32_t>(rooms_.size()));
@@ -325,7 +342,6 @@ Status PortalGraph::finish() {
   for (uint32_t item = 0; item < item_count; ++item) {
     for_cells(item_box(item), [&](size_t c) { locator_.items[next[c]++] = item; });
   }
-  return Status::ok();
 }
 
 Aabb PortalGraph::room_region(uint32_t room) const {
