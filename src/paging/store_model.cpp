@@ -160,7 +160,7 @@ Status read_portals(const store::StoreReader& reader, std::optional<PortalGraph>
 std::vector<uint8_t> StoreModelInfo::to_bytes() const {
   nlohmann::json j;
   j["version"] = kModelVersion;
-  j["codec"] = codec == CellCodec::Draco ? "draco" : "raw";
+  j["codec"] = std::string(cell_codec_name(codec));
   j["lattice"] = {{"origin", vec_json(lattice.origin)}, {"step", lattice.step}, {"bits", lattice.bits}};
   j["bounds"] = {{"lo", vec_json(bounds.lo)}, {"hi", vec_json(bounds.hi)}};
   j["input_primitives"] = input_primitives;
@@ -200,13 +200,9 @@ Result<StoreModelInfo> StoreModelInfo::from_bytes(std::span<const uint8_t> bytes
                                              version, kModelVersion));
     }
     const std::string codec = j.at("codec").get<std::string>();
-    if (codec == "draco") {
-      info.codec = CellCodec::Draco;
-    } else if (codec == "raw") {
-      info.codec = CellCodec::Raw;
-    } else {
-      return Status::unsupported(fmt::format("{}: unknown codec '{}'", where, codec));
-    }
+    const std::optional<CellCodec> tag = cell_codec_named(codec);
+    if (!tag) return Status::unsupported(fmt::format("{}: unknown codec '{}'", where, codec));
+    info.codec = *tag;
     const auto& lat = j.at("lattice");
     info.lattice.origin = json_vec(lat.at("origin"));
     info.lattice.step = lat.at("step").get<double>();
@@ -346,7 +342,7 @@ Status StoreModel::read_cell(uint32_t cell, Scene& out) const {
 Status StoreModel::decode_page(uint32_t cell, uint8_t codec, std::span<const uint8_t> payload, Scene& out) const {
   out = Scene{};
   const StoreCell& c = cells_.at(cell);
-  if (codec != static_cast<uint8_t>(CellCodec::Raw) && codec != static_cast<uint8_t>(CellCodec::Draco)) {
+  if (!is_cell_codec(codec)) {
     return Status::corruption(
         fmt::format("{}: cell {} page {}: unknown codec {}", reader_->name(), cell, c.page, codec));
   }
