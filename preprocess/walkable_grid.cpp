@@ -512,24 +512,26 @@ struct WalkableGridBuilder::Impl {
                 return;
               }
               const BrickKey& key = *b->key;
+              store::ByteWriter entry(table);
               for (int32_t v : {key[0], key[1], key[2], b->box.min().x(), b->box.min().y(), b->box.min().z(),
                                 b->box.max().x(), b->box.max().y(), b->box.max().z()}) {
-                store::put_u32(table, uint32_t(v));
+                entry.u32(uint32_t(v));
               }
-              store::put_u64(table, *page);
-              store::put_u64(table, b->count);
+              entry.u64(*page);
+              entry.u64(b->count);
               ++bricks;
               active += b->count;
             }));
     if (!failed.is_ok()) return failed;
     std::vector<uint8_t> payload;
-    put_f64(payload, voxel);
-    store::put_u32(payload, uint32_t(band));
-    store::put_u32(payload, uint32_t(sdf_format::kBrickVoxels));
-    for (int a = 0; a < 3; ++a) store::put_u64(payload, uint64_t(int64_t(origin_index[a])));
-    store::put_u64(payload, bricks);
-    store::put_u64(payload, active);
-    payload.insert(payload.end(), table.begin(), table.end());
+    GeometryWriter w(payload);
+    w.f64(voxel);
+    w.u32(uint32_t(band));
+    w.u32(uint32_t(sdf_format::kBrickVoxels));
+    for (int a = 0; a < 3; ++a) w.u64(uint64_t(int64_t(origin_index[a])));
+    w.u64(bricks);
+    w.u64(active);
+    w.bytes(table);
     finished_active = active;
     return sdf_format::frame(payload);
   }

@@ -1,9 +1,11 @@
+// Encoders and checked decoders of the store's framing (layout and contracts: page_format.h,
+// store/FORMAT.md). Decoders parse with ByteReader, so a count or length they have not checked
+// never moves a read outside the bytes they were given.
 #include "store/page_format.h"
 
 #include <xxhash.h>
 
 #include <algorithm>
-#include <cstring>
 #include <set>
 
 namespace frontier::store {
@@ -15,22 +17,6 @@ std::string at(const std::string& file, const char* what, uint64_t offset) {
 
 }  // namespace
 
-void put_u32(std::vector<uint8_t>& out, uint32_t v) {
-  for (int i = 0; i < 4; ++i) out.push_back(static_cast<uint8_t>(v >> (8 * i)));
-}
-void put_u64(std::vector<uint8_t>& out, uint64_t v) {
-  for (int i = 0; i < 8; ++i) out.push_back(static_cast<uint8_t>(v >> (8 * i)));
-}
-uint32_t get_u32(const uint8_t* p) {
-  uint32_t v = 0;
-  for (int i = 0; i < 4; ++i) v |= static_cast<uint32_t>(p[i]) << (8 * i);
-  return v;
-}
-uint64_t get_u64(const uint8_t* p) {
-  uint64_t v = 0;
-  for (int i = 0; i < 8; ++i) v |= static_cast<uint64_t>(p[i]) << (8 * i);
-  return v;
-}
 uint64_t checksum(std::span<const uint8_t> bytes) { return XXH64(bytes.data(), bytes.size(), 0); }
 
 std::vector<uint8_t> encode_page(uint8_t codec, std::span<const uint8_t> payload) {
@@ -38,7 +24,7 @@ std::vector<uint8_t> encode_page(uint8_t codec, std::span<const uint8_t> payload
   out.reserve(payload.size() + kBlockTrailerSize);
   out.insert(out.end(), payload.begin(), payload.end());
   out.push_back(codec);
-  put_u64(out, checksum(out));
+  ByteWriter(out).u64(checksum(out));
   return out;
 }
 
@@ -61,9 +47,10 @@ Result<DecodedPage> decode_page(std::span<const uint8_t> bytes, Handle handle) {
 
 std::array<uint8_t, kHeaderSize> encode_header(const Header& header) {
   std::vector<uint8_t> v(kMagic.begin(), kMagic.end());
-  put_u32(v, header.version);
-  put_u32(v, header.flags);
-  put_u64(v, checksum(v));
+  ByteWriter w(v);
+  w.u32(header.version);
+  w.u32(header.flags);
+  w.u64(checksum(v));
   std::array<uint8_t, kHeaderSize> out{};
   std::copy(v.begin(), v.end(), out.begin());
   return out;
@@ -91,11 +78,12 @@ Result<Header> decode_header(std::span<const uint8_t> bytes, const std::string& 
 
 std::array<uint8_t, kFooterSize> encode_footer(const Footer& footer) {
   std::vector<uint8_t> v;
-  put_u64(v, footer.directory.offset);
-  put_u64(v, footer.directory.size);
-  put_u32(v, footer.version);
-  put_u32(v, 0);  // reserved
-  put_u64(v, checksum(v));
+  ByteWriter w(v);
+  w.u64(footer.directory.offset);
+  w.u64(footer.directory.size);
+  w.u32(footer.version);
+  w.u32(0);  // reserved
+  w.u64(checksum(v));
   v.insert(v.end(), kMagic.begin(), kMagic.end());
   std::array<uint8_t, kFooterSize> out{};
   std::copy(v.begin(), v.end(), out.begin());
@@ -129,12 +117,13 @@ Result<Footer> decode_footer(std::span<const uint8_t> bytes, const std::string& 
 
 std::vector<uint8_t> encode_directory(const std::vector<Section>& sections) {
   std::vector<uint8_t> out;
-  put_u32(out, static_cast<uint32_t>(sections.size()));
+  ByteWriter w(out);
+  w.u32(static_cast<uint32_t>(sections.size()));
   for (const Section& s : sections) {
-    out.push_back(static_cast<uint8_t>(s.name.size()));
-    out.insert(out.end(), s.name.begin(), s.name.end());
-    put_u64(out, s.handle.offset);
-    put_u64(out, s.handle.size);
+    w.u8(static_cast<uint8_t>(s.name.size()));
+    w.bytes(reinterpret_cast<const uint8_t*>(s.name.data()), s.name.size());
+    w.u64(s.handle.offset);
+    w.u64(s.handle.size);
   }
   return out;
 }
@@ -142,37 +131,39 @@ std::vector<uint8_t> encode_directory(const std::vector<Section>& sections) {
 Result<std::vector<Section>> decode_directory(std::span<const uint8_t> payload, Handle where,
                                               const std::string& file) {
   std::string prefix = at(file, "directory", where.offset);
-  if (payload.size() < 4) return Status::corruption(prefix + "truncated count");
-  uint32_t count = get_u32(payload.data());
-  size_t pos = 4;
+  ByteReader r(payload);
+  const uint32_t count = r.u32();
+  if (!r.ok()) return Status::corruption(prefix + "truncated count");
   std::vector<Section> sections;
   std::set<std::string> names;
   for (uint32_t i = 0; i < count; ++i) {
-    if (pos + 1 > payload.size()) return Status::corruption(prefix + "truncated entry");
-    size_t len = payload[pos++];
-    if (len == 0 || pos + len + 16 > payload.size()) {
+    const size_t len = r.u8();
+    if (!r.ok()) return Status::corruption(prefix + "truncated entry");
+    if (len == 0 || len + 16 > r.remaining()) {
       return Status::corruption(prefix + "bad entry " + std::to_string(i));
     }
     Section s;
-    s.name.assign(reinterpret_cast<const char*>(payload.data() + pos), len);
-    pos += len;
-    s.handle = {get_u64(payload.data() + pos), get_u64(payload.data() + pos + 8)};
-    pos += 16;
+    const std::span<const uint8_t> name = r.bytes(len);
+    s.name.assign(name.begin(), name.end());
+    s.handle.offset = r.u64();
+    s.handle.size = r.u64();
     if (!names.insert(s.name).second) {
       return Status::corruption(prefix + "duplicate section \"" + s.name + "\"");
     }
     sections.push_back(std::move(s));
   }
-  if (pos != payload.size()) return Status::corruption(prefix + "trailing bytes");
+  if (r.remaining() != 0) return Status::corruption(prefix + "trailing bytes");
   return sections;
 }
 
 std::vector<uint8_t> encode_page_index(const std::vector<Handle>& pages) {
   std::vector<uint8_t> out;
-  put_u64(out, pages.size());
+  ByteWriter w(out);
+  w.reserve(8 + 16 * pages.size());
+  w.u64(pages.size());
   for (const Handle& h : pages) {
-    put_u64(out, h.offset);
-    put_u64(out, h.size);
+    w.u64(h.offset);
+    w.u64(h.size);
   }
   return out;
 }
@@ -180,16 +171,17 @@ std::vector<uint8_t> encode_page_index(const std::vector<Handle>& pages) {
 Result<std::vector<Handle>> decode_page_index(std::span<const uint8_t> payload, Handle where,
                                               const std::string& file) {
   std::string prefix = at(file, "page index", where.offset);
-  if (payload.size() < 8) return Status::corruption(prefix + "truncated count");
-  uint64_t count = get_u64(payload.data());
-  if ((payload.size() - 8) % 16 != 0 || (payload.size() - 8) / 16 != count) {
+  ByteReader r(payload);
+  const uint64_t count = r.u64();
+  if (!r.ok()) return Status::corruption(prefix + "truncated count");
+  if (r.remaining() % 16 != 0 || r.remaining() / 16 != count) {
     return Status::corruption(prefix + "count " + std::to_string(count) +
                               " does not match size " + std::to_string(payload.size()));
   }
   std::vector<Handle> pages(count);
-  for (uint64_t i = 0; i < count; ++i) {
-    const uint8_t* p = payload.data() + 8 + 16 * i;
-    pages[i] = {get_u64(p), get_u64(p + 8)};
+  for (Handle& h : pages) {
+    h.offset = r.u64();
+    h.size = r.u64();
   }
   return pages;
 }

@@ -16,6 +16,7 @@
 #include <string_view>
 #include <vector>
 
+#include "store/byte_stream.h"
 #include "store/status.h"
 
 namespace frontier::store {
@@ -40,11 +41,7 @@ struct Handle {
   friend bool operator==(const Handle&, const Handle&) = default;
 };
 
-// --- little-endian helpers -----------------------------------------------------------------
-void put_u32(std::vector<uint8_t>& out, uint32_t v);
-void put_u64(std::vector<uint8_t>& out, uint64_t v);
-uint32_t get_u32(const uint8_t* p);
-uint64_t get_u64(const uint8_t* p);
+// Integers are written and read with store/byte_stream.h.
 uint64_t checksum(std::span<const uint8_t> bytes);  // xxHash64, seed 0
 
 // --- blocks --------------------------------------------------------------------------------

@@ -1,28 +1,52 @@
-// Little-endian doubles, points and boxes in section payloads (store/FORMAT.md), on top of the
-// store's integer helpers: one definition for every section the engine writes.
+// Byte streams that also carry geometry: the store's little-endian ByteWriter/ByteReader
+// (store/byte_stream.h) plus doubles, points and boxes, for every section and page payload the
+// engine writes (layouts in store/FORMAT.md).
+//
+// A double is its IEEE-754 bits as a little-endian u64, so every value round-trips bit for bit
+// (NaN payloads and -0 included). A box is lo then hi, read back exactly as stored: the Aabb
+// constructor would order them, turning an empty box (lo > hi) into a full one. Reads keep the
+// ByteReader contract: never outside the span, sticky failure, zeros once failed.
 #pragma once
 
 #include "src/core/geometry.h"
-#include "store/page_format.h"
+#include "store/byte_stream.h"
 
 #include <bit>
 #include <cstdint>
+#include <span>
 #include <vector>
 
 namespace frontier {
 
-inline void put_f64(std::vector<uint8_t>& out, double v) { store::put_u64(out, std::bit_cast<uint64_t>(v)); }
-inline double get_f64(const uint8_t* p) { return std::bit_cast<double>(store::get_u64(p)); }
-inline void put_vec(std::vector<uint8_t>& out, const Vec3& v) {
-  for (int a = 0; a < 3; ++a) put_f64(out, v[a]);
-}
-inline Vec3 get_vec(const uint8_t* p) { return {get_f64(p), get_f64(p + 8), get_f64(p + 16)}; }
-// lo and hi as stored: the Aabb constructor would order them, turning an empty box into a full one.
-inline Aabb get_box(const uint8_t* p) {
-  Aabb b;
-  b.lo = get_vec(p);
-  b.hi = get_vec(p + 24);
-  return b;
-}
+class GeometryWriter : public store::ByteWriter {
+ public:
+  using store::ByteWriter::ByteWriter;
+  void f64(double v) { u64(std::bit_cast<uint64_t>(v)); }
+  void vec3(const Vec3& v) {
+    f64(v.x);
+    f64(v.y);
+    f64(v.z);
+  }
+  void box(const Aabb& b) {
+    vec3(b.lo);
+    vec3(b.hi);
+  }
+};
+
+class GeometryReader : public store::ByteReader {
+ public:
+  using store::ByteReader::ByteReader;
+  double f64() { return std::bit_cast<double>(u64()); }
+  Vec3 vec3() {
+    const double x = f64(), y = f64();
+    return {x, y, f64()};
+  }
+  Aabb box() {
+    Aabb b;
+    b.lo = vec3();
+    b.hi = vec3();
+    return b;
+  }
+};
 
 }  // namespace frontier

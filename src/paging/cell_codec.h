@@ -2,24 +2,28 @@
 // back. The store itself only carries bytes and a codec tag (store/FORMAT.md); the geometry
 // layout of a cell payload is documented in store/FORMAT.md under "Cell pages".
 //
-// Positions live on one global lattice (origin + step * q, q integer per axis) fixed for the
-// whole model, so a vertex shared by two cells decodes to the same double in both: no cracks.
-// The Draco codec stores lattice integers relative to a per-cell integer base and dequantizes
-// itself in double precision (Draco's own float32 dequantization would lose far-from-origin
-// coordinates). The raw codec stores every primitive bit-exactly (doubles), on or off a lattice.
+// Positions live on one global lattice (lattice.h) fixed for the whole model, so a vertex
+// shared by two cells decodes to the same double in both: no cracks. The Draco codec stores
+// lattice integers relative to a per-cell integer base and dequantizes itself in double
+// precision (Draco's own float32 dequantization would lose far-from-origin coordinates). The
+// raw codec stores every primitive bit-exactly (doubles), on or off a lattice.
 //
 // Spheres, boxes, cones and quadrics are stored as raw doubles by both codecs. Draco reorders
 // triangles; the page stores every triangle's source and material in Draco's decoded order.
-// Both functions are pure: safe to call from several threads at once.
+// Every function here is pure: safe to call from several threads at once. Each codec lives in
+// its own file (raw_codec.cpp, draco_codec.cpp; the interface is cell_codec_impl.h) and
+// cell_codec.cpp dispatches on the tag.
 #pragma once
 
 #include "src/core/geometry.h"
 #include "src/core/scene.h"
 #include "src/core/status.h"
+#include "src/paging/lattice.h"
 
-#include <array>
 #include <cstdint>
+#include <optional>
 #include <span>
+#include <string_view>
 #include <vector>
 
 namespace frontier {
@@ -27,23 +31,12 @@ namespace frontier {
 // Codec tags as written in a page's codec byte (store/FORMAT.md). 0 is the store's raw tag.
 enum class CellCodec : uint8_t { Raw = 0, Draco = 1 };
 
-// The global quantization lattice: point(q) = origin + step * q for integer q in
-// [0, 2^bits - 1] on every axis. step is the same on all three axes (cubic lattice sized to the
-// largest extent), so the error bound is step/2 per axis, step*sqrt(3)/2 in distance.
-struct Lattice {
-  Vec3 origin{0.0};
-  double step = 1.0;
-  int bits = 16;
-
-  // The lattice covering `bounds` with `bits` bits per axis.
-  static Lattice covering(const Aabb& bounds, int bits);
-  // Nearest lattice index of p, clamped to [0, 2^bits - 1].
-  std::array<int64_t, 3> quantize(const Vec3& p) const;
-  Vec3 point(const std::array<int64_t, 3>& q) const;
-  // point(quantize(p)).
-  Vec3 snap(const Vec3& p) const { return point(quantize(p)); }
-  double max_error() const { return 0.5 * step; }  // per axis
-};
+// Whether `tag` is a page codec byte this build can decode.
+bool is_cell_codec(uint8_t tag);
+// The codec's name in the model section and on command lines ("raw", "draco"), and back
+// (nullopt for a name no codec has).
+std::string_view cell_codec_name(CellCodec codec);
+std::optional<CellCodec> cell_codec_named(std::string_view name);
 
 struct CellCodecOptions {
   CellCodec codec = CellCodec::Draco;

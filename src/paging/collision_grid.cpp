@@ -9,6 +9,7 @@
 
 #include "store/byte_lru.h"
 #include "store/page_format.h"
+#include "store/section_frame.h"
 #include "store/store_file.h"
 #include "store/store_page_source.h"
 
@@ -20,7 +21,6 @@
 #include <chrono>
 #include <cassert>
 #include <cmath>
-#include <cstring>
 #include <exception>
 #include <mutex>
 #include <sstream>
@@ -32,13 +32,7 @@ namespace frontier {
 namespace sdf_format {
 
 std::vector<uint8_t> frame(std::span<const uint8_t> payload, uint32_t version) {
-  std::vector<uint8_t> out(kMagic.begin(), kMagic.end());
-  out.reserve(kHeaderSize + payload.size());
-  store::put_u32(out, version);
-  store::put_u64(out, payload.size());
-  store::put_u64(out, store::checksum(payload));
-  out.insert(out.end(), payload.begin(), payload.end());
-  return out;
+  return store::frame_section(kMagic, version, payload);
 }
 
 }  // namespace sdf_format
@@ -345,116 +339,143 @@ CollisionGrid::CollisionGrid(CollisionGrid&&) noexcept = default;
 CollisionGrid& CollisionGrid::operator=(CollisionGrid&&) noexcept = default;
 CollisionGrid::~CollisionGrid() = default;
 
+namespace {
+
+Status corrupt_section(const std::string& what) { return Status::corruption("sdf section: " + what); }
+
+bool usable_sizes(double voxel, int band) {
+  return voxel > 0.0 && std::isfinite(voxel) && band >= 1 && band <= 1000;
+}
+
+// The fixed fields of a version 2 payload, before its brick table.
+struct BrickTableHeader {
+  double voxel = 1.0;
+  int band = 3;
+  Vec3 origin{0.0};
+  uint64_t bricks = 0;
+  uint64_t active = 0;
+};
+
+// Reads and checks the fixed fields, and that exactly `bricks` entries follow them.
+Status read_brick_table_header(GeometryReader& r, BrickTableHeader& h) {
+  h.voxel = r.f64();
+  h.band = int(int32_t(r.u32()));
+  const uint32_t brick_voxels = r.u32();
+  int64_t origin[3];
+  for (int64_t& o : origin) o = int64_t(r.u64());
+  h.bricks = r.u64();
+  h.active = r.u64();
+  if (!r.ok()) return corrupt_section("truncated brick table");
+  if (!usable_sizes(h.voxel, h.band)) return corrupt_section("bad voxel size or band width");
+  if (brick_voxels != uint32_t(sdf_format::kBrickVoxels)) return corrupt_section("unknown brick size");
+  for (int a = 0; a < 3; ++a) {
+    if (!(std::abs(double(origin[a])) < kMaxIndex)) return corrupt_section("lattice origin out of range");
+    h.origin[a] = double(origin[a]);
+  }
+  if (h.bricks > r.remaining() / sdf_format::kBrickEntrySize || r.remaining() != h.bricks * sdf_format::kBrickEntrySize) {
+    return corrupt_section("brick table size does not match its " + std::to_string(h.bricks) + " bricks");
+  }
+  return Status::ok();
+}
+
+// One brick table entry on its own: within the index range the builder keeps to, with a
+// non-empty active box inside the brick and a count a brick can hold.
+Status check_brick(uint64_t i, const openvdb::Coord& coord, const openvdb::CoordBBox& active, uint64_t active_voxels) {
+  const int64_t limit = int64_t(1) << (30 - sdf_format::kBrickLog2);
+  for (int a = 0; a < 3; ++a) {
+    if (std::abs(int64_t(coord[a])) > limit) return corrupt_section("brick " + std::to_string(i) + " out of range");
+  }
+  const uint64_t cap = uint64_t(sdf_format::kBrickVoxels) * sdf_format::kBrickVoxels * sdf_format::kBrickVoxels;
+  if (active_voxels == 0 || active_voxels > cap || active.empty() || !brick_box(coord).isInside(active)) {
+    return corrupt_section("brick " + std::to_string(i) + ": bad active voxels");
+  }
+  return Status::ok();
+}
+
+// A version 1 payload: one OpenVDB stream of the whole grid, its sizes in its metadata.
+struct WholeGrid {
+  openvdb::FloatGrid::Ptr grid;
+  double voxel = 1.0;
+  int band = 3;
+  uint64_t active = 0;
+};
+
+Result<WholeGrid> read_whole_grid(std::span<const uint8_t> payload) {
+  auto grid = read_grid(payload);
+  if (!grid) return corrupt_section(grid.status().message());
+  try {
+    const auto voxel_meta = (*grid)->getMetadata<openvdb::DoubleMetadata>(sdf_format::kMetaVoxelSize);
+    const auto band_meta = (*grid)->getMetadata<openvdb::Int32Metadata>(sdf_format::kMetaBandVoxels);
+    const auto kind_meta = (*grid)->getMetadata<openvdb::StringMetadata>(sdf_format::kMetaDistance);
+    if (!voxel_meta || !band_meta || !kind_meta) return corrupt_section("grid metadata missing");
+    if (kind_meta->value() != "unsigned") return corrupt_section("distance kind is not \"unsigned\"");
+    WholeGrid whole{*grid, voxel_meta->value(), band_meta->value(), 0};
+    if (!usable_sizes(whole.voxel, whole.band)) return corrupt_section("bad voxel size or band width");
+    const double far = whole.band * whole.voxel;
+    const openvdb::math::Transform& xform = (*grid)->transform();
+    if (!xform.isLinear() || !xform.hasUniformScale() ||
+        std::abs(xform.voxelSize()[0] - whole.voxel) > 1e-9 * whole.voxel) {
+      return corrupt_section("grid transform disagrees with its voxel size");
+    }
+    if (std::abs(double((*grid)->background()) - far) > 1e-4 * far) {
+      return corrupt_section("grid background is not the band width");
+    }
+    whole.active = whole.grid->activeVoxelCount();
+    return whole;
+  } catch (const std::exception& e) {
+    return corrupt_section(std::string("OpenVDB: ") + e.what());
+  }
+}
+
+}  // namespace
+
 Result<CollisionGrid> CollisionGrid::open(std::span<const uint8_t> bytes, BrickSource source,
                                           uint64_t budget_bytes) {
-  using sdf_format::kHeaderSize;
-  const auto corrupt = [](const std::string& what) {
-    return Status::corruption("sdf section: " + what);
-  };
-  if (bytes.size() < kHeaderSize) {
-    return corrupt("truncated header (" + std::to_string(bytes.size()) + " bytes)");
-  }
-  if (std::memcmp(bytes.data(), sdf_format::kMagic.data(), sdf_format::kMagic.size()) != 0) {
-    return corrupt("bad magic");
-  }
-  const uint32_t version = store::get_u32(bytes.data() + 4);
-  if (version == 0) return corrupt("bad version 0");
-  if (version > sdf_format::kVersion) {
-    return Status::unsupported("sdf section: version " + std::to_string(version) +
-                               " is newer than this reader (" +
-                               std::to_string(sdf_format::kVersion) + ")");
-  }
-  const uint64_t size = store::get_u64(bytes.data() + 8);
-  if (size != bytes.size() - kHeaderSize) {
-    return corrupt("payload size " + std::to_string(size) + " but " +
-                   std::to_string(bytes.size() - kHeaderSize) + " bytes follow the header");
-  }
-  const std::span<const uint8_t> payload = bytes.subspan(kHeaderSize);
-  if (store::checksum(payload) != store::get_u64(bytes.data() + 16)) {
-    return corrupt("checksum mismatch");
-  }
+  auto section = store::unframe_section(bytes, sdf_format::kMagic, sdf_format::kVersion, "sdf section");
+  if (!section) return section.status();
 
   ensure_openvdb_initialized();
   auto impl = std::make_unique<Impl>();
   impl->source = std::move(source);
   impl->budget = budget_bytes;
-  const auto check_sizes = [&](double voxel, int band) {
-    if (!(voxel > 0.0) || !std::isfinite(voxel) || band < 1 || band > 1000) return false;
-    impl->voxel = voxel;
-    impl->band = band;
-    impl->far = band * voxel;
-    return true;
-  };
-  if (version == sdf_format::kVersion2) {
-    constexpr size_t kFixed = 8 + 4 + 4 + 24 + 8 + 8;
-    if (payload.size() < kFixed) return corrupt("truncated brick table");
-    const uint8_t* p = payload.data();
-    const double voxel = get_f64(p);
-    const int band = int(int32_t(store::get_u32(p + 8)));
-    if (!check_sizes(voxel, band)) return corrupt("bad voxel size or band width");
-    if (store::get_u32(p + 12) != uint32_t(sdf_format::kBrickVoxels)) return corrupt("unknown brick size");
-    for (int a = 0; a < 3; ++a) {
-      const int64_t o = int64_t(store::get_u64(p + 16 + 8 * a));
-      if (!(std::abs(double(o)) < kMaxIndex)) return corrupt("lattice origin out of range");
-      impl->origin[a] = double(o);
-    }
-    const uint64_t count = store::get_u64(p + 40);
-    impl->total_active = store::get_u64(p + 48);
-    if (count > (payload.size() - kFixed) / sdf_format::kBrickEntrySize ||
-        payload.size() - kFixed != count * sdf_format::kBrickEntrySize) {
-      return corrupt("brick table size does not match its " + std::to_string(count) + " bricks");
-    }
+  if (section->version == sdf_format::kVersion2) {
+    GeometryReader r(section->payload);
+    BrickTableHeader h;
+    if (Status s = read_brick_table_header(r, h); !s) return s;
+    impl->voxel = h.voxel;
+    impl->band = h.band;
+    impl->far = h.band * h.voxel;
+    impl->origin = h.origin;
+    impl->total_active = h.active;
     uint64_t active = 0;
-    impl->bricks.reserve(count);
-    for (uint64_t i = 0; i < count; ++i) {
-      const uint8_t* e = p + kFixed + i * sdf_format::kBrickEntrySize;
-      const auto i32 = [&](int k) { return int32_t(store::get_u32(e + 4 * k)); };
+    impl->bricks.reserve(h.bricks);
+    for (uint64_t i = 0; i < h.bricks; ++i) {
+      int32_t v[9];
+      for (int32_t& x : v) x = int32_t(r.u32());
       Impl::Brick b;
-      b.coord = openvdb::Coord(i32(0), i32(1), i32(2));
-      b.active = openvdb::CoordBBox(openvdb::Coord(i32(3), i32(4), i32(5)), openvdb::Coord(i32(6), i32(7), i32(8)));
-      b.page = store::get_u64(e + 36);
-      b.active_voxels = store::get_u64(e + 44);
-      const int64_t limit = int64_t(1) << (30 - sdf_format::kBrickLog2);
-      for (int a = 0; a < 3; ++a) {
-        if (std::abs(int64_t(b.coord[a])) > limit) return corrupt("brick " + std::to_string(i) + " out of range");
-      }
-      const uint64_t cap = uint64_t(sdf_format::kBrickVoxels) * sdf_format::kBrickVoxels * sdf_format::kBrickVoxels;
-      if (b.active_voxels == 0 || b.active_voxels > cap || b.active.empty() || !brick_box(b.coord).isInside(b.active)) {
-        return corrupt("brick " + std::to_string(i) + ": bad active voxels");
-      }
+      b.coord = openvdb::Coord(v[0], v[1], v[2]);
+      b.active = openvdb::CoordBBox(openvdb::Coord(v[3], v[4], v[5]), openvdb::Coord(v[6], v[7], v[8]));
+      b.page = r.u64();
+      b.active_voxels = r.u64();
+      if (Status s = check_brick(i, b.coord, b.active, b.active_voxels); !s) return s;
       if (!impl->brick_index.emplace(b.coord, uint32_t(i)).second) {
-        return corrupt("brick " + std::to_string(i) + " appears twice");
+        return corrupt_section("brick " + std::to_string(i) + " appears twice");
       }
       active += b.active_voxels;
       impl->bricks.push_back(b);
     }
-    if (active != impl->total_active) return corrupt("brick voxel counts do not add up");
+    if (active != impl->total_active) return corrupt_section("brick voxel counts do not add up");
     return CollisionGrid(std::move(impl));
   }
 
   // Version 1: the whole grid in the section.
-  auto grid = read_grid(payload);
-  if (!grid) return corrupt(grid.status().message());
-  try {
-    const auto voxel_meta = (*grid)->getMetadata<openvdb::DoubleMetadata>(sdf_format::kMetaVoxelSize);
-    const auto band_meta = (*grid)->getMetadata<openvdb::Int32Metadata>(sdf_format::kMetaBandVoxels);
-    const auto kind_meta = (*grid)->getMetadata<openvdb::StringMetadata>(sdf_format::kMetaDistance);
-    if (!voxel_meta || !band_meta || !kind_meta) return corrupt("grid metadata missing");
-    if (kind_meta->value() != "unsigned") return corrupt("distance kind is not \"unsigned\"");
-    if (!check_sizes(voxel_meta->value(), band_meta->value())) return corrupt("bad voxel size or band width");
-    const openvdb::math::Transform& xform = (*grid)->transform();
-    if (!xform.isLinear() || !xform.hasUniformScale() ||
-        std::abs(xform.voxelSize()[0] - impl->voxel) > 1e-9 * impl->voxel) {
-      return corrupt("grid transform disagrees with its voxel size");
-    }
-    if (std::abs(double((*grid)->background()) - impl->far) > 1e-4 * impl->far) {
-      return corrupt("grid background is not the band width");
-    }
-    impl->whole = *grid;
-    impl->total_active = impl->whole->activeVoxelCount();
-  } catch (const std::exception& e) {
-    return corrupt(std::string("OpenVDB: ") + e.what());
-  }
+  auto whole = read_whole_grid(section->payload);
+  if (!whole) return whole.status();
+  impl->voxel = whole->voxel;
+  impl->band = whole->band;
+  impl->far = whole->band * whole->voxel;
+  impl->whole = whole->grid;
+  impl->total_active = whole->active;
   impl->stats.resident_bytes = impl->whole->memUsage();
   return CollisionGrid(std::move(impl));
 }

@@ -43,6 +43,7 @@
 
 #include "src/core/geometry.h"
 #include "src/core/status.h"
+#include "store/section_frame.h"
 
 #include <array>
 #include <cstdint>
@@ -58,12 +59,12 @@ class StoreReader;
 }
 
 namespace sdf_format {
-inline constexpr std::array<uint8_t, 4> kMagic = {'F', 'S', 'D', 'F'};
+inline constexpr store::SectionMagic kMagic = {'F', 'S', 'D', 'F'};
 // Versions, oldest first; load() accepts versions <= kVersion and refuses newer ones cleanly.
 inline constexpr uint32_t kVersion1 = 1;  // unsigned distance FloatGrid in an OpenVDB stream
 inline constexpr uint32_t kVersion2 = 2;  // the grid cut into bricks, one store page each
 inline constexpr uint32_t kVersion = kVersion2;
-inline constexpr size_t kHeaderSize = 24;
+inline constexpr size_t kHeaderSize = store::kSectionHeaderSize;
 inline constexpr const char* kGridName = "frontier_collision";
 inline constexpr const char* kMetaVoxelSize = "frontier_voxel_size";
 inline constexpr const char* kMetaBandVoxels = "frontier_band_voxels";
@@ -76,7 +77,8 @@ inline constexpr size_t kBrickEntrySize = 52;
 // cell codecs' tags, 0 and 1).
 inline constexpr uint8_t kBrickCodec = 0x53;  // 'S'
 
-// Wraps a payload in the section header above (magic, version, size, checksum).
+// Wraps a payload in the section header above (magic, version, size, checksum):
+// store::frame_section with kMagic.
 std::vector<uint8_t> frame(std::span<const uint8_t> payload, uint32_t version = kVersion);
 }  // namespace sdf_format
 

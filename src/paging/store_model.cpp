@@ -1,29 +1,22 @@
 // StoreModel: the model, tree and cells sections of a store, and cell pages decoded on demand.
+// Opening parses each section with its own checked decoder, then walks the tree against the
+// cells; nothing is trusted before it has been checked (layouts: store/FORMAT.md).
 #include "src/paging/store_model.h"
 
-#include "store/page_file.h"
 #include "src/core/byte_io.h"
-#include "store/page_format.h"
+#include "store/page_file.h"
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
-#include <bit>
 #include <cmath>
-#include <cstring>
 
 namespace frontier {
 namespace {
 
-using store::get_u32;
-using store::get_u64;
-using store::put_u32;
-using store::put_u64;
-
 constexpr size_t kNodeBytes = 16;   // f64 split, u32 axis_or_leaf, u32 child
 constexpr size_t kCellBytes = 112;  // 12 f64 bounds/content, u32 references, u32 0, u64 page
 constexpr int kModelVersion = 1;
-
 
 nlohmann::json vec_json(const Vec3& v) { return nlohmann::json::array({v.x, v.y, v.z}); }
 Vec3 json_vec(const nlohmann::json& j) {
@@ -38,12 +31,136 @@ bool finite(const Aabb& b) {
   return true;
 }
 
+// A section every model store has; Corruption (not NotFound) without it: the file is a store,
+// but not a model store.
+Result<std::vector<uint8_t>> required_section(const store::StoreReader& reader, std::string_view which) {
+  auto bytes = reader.read_section(which);
+  if (!bytes && bytes.status().code() == Status::Code::NotFound) {
+    return Status::corruption(fmt::format("{}: no '{}' section (not a model store?)", reader.name(), which));
+  }
+  return bytes;
+}
+
+// The `tree` section: a node count (at least one) and exactly that many nodes.
+Result<std::vector<KdTree::Node>> decode_tree(std::span<const uint8_t> bytes, const std::string& name) {
+  GeometryReader r(bytes);
+  const uint64_t count = r.u64();
+  if (!r.ok() || count == 0 || r.remaining() % kNodeBytes != 0 || r.remaining() / kNodeBytes != count) {
+    return Status::corruption(fmt::format("{}: tree section: size {} does not match its node count", name, bytes.size()));
+  }
+  std::vector<KdTree::Node> nodes(count);
+  for (KdTree::Node& n : nodes) {
+    n.split = r.f64();
+    n.axis_or_leaf = r.u32();
+    n.child = r.u32();
+  }
+  return nodes;
+}
+
+// The `cells` section: a cell count and exactly that many records, each consistent on its own
+// (finite bounds holding the content, a page in range exactly when it holds references).
+Result<std::vector<StoreCell>> decode_cells(std::span<const uint8_t> bytes, const std::string& name,
+                                            uint64_t page_count) {
+  GeometryReader r(bytes);
+  const uint64_t count = r.u64();
+  if (!r.ok() || r.remaining() % kCellBytes != 0 || r.remaining() / kCellBytes != count) {
+    return Status::corruption(fmt::format("{}: cells section: size {} does not match its cell count", name, bytes.size()));
+  }
+  std::vector<StoreCell> cells(count);
+  for (size_t i = 0; i < cells.size(); ++i) {
+    StoreCell& c = cells[i];
+    c.bounds = r.box();
+    c.content = r.box();
+    c.references = r.u32();
+    const uint32_t zero = r.u32();
+    c.page = r.u64();
+    if (c.bounds.empty() || !finite(c.bounds)) return Status::corruption(fmt::format("{}: cell {}: bad bounds", name, i));
+    const bool has_page = c.page != StoreCell::kNoPage;
+    if (zero != 0 || (has_page && c.page >= page_count) || has_page != (c.references > 0)) {
+      return Status::corruption(fmt::format("{}: cell {}: bad page reference", name, i));
+    }
+    if (!c.content.empty() && !(c.bounds.contains(c.content.lo) && c.bounds.contains(c.content.hi))) {
+      return Status::corruption(fmt::format("{}: cell {}: content outside the cell", name, i));
+    }
+  }
+  return cells;
+}
+
+// Walks the tree (preorder, lower child = next node): every node visited once, splits strictly
+// inside their region, every cell reached once with exactly the region its record states.
+// Returns the tree's depth.
+Result<uint32_t> check_tree(const std::vector<KdTree::Node>& nodes, const std::vector<StoreCell>& cells,
+                            const Aabb& bounds, const std::string& name) {
+  struct Visit {
+    uint32_t node;
+    Aabb region;
+    uint32_t depth;
+  };
+  std::vector<Visit> stack{{0, bounds, 0}};
+  std::vector<uint8_t> cell_seen(cells.size(), 0);
+  size_t visited = 0;
+  uint32_t expected = 0;  // preorder: nodes are visited in index order
+  uint32_t depth = 0;
+  while (!stack.empty()) {
+    const Visit v = stack.back();
+    stack.pop_back();
+    if (v.node != expected || v.node >= nodes.size()) {
+      return Status::corruption(fmt::format("{}: tree node {}: not in preorder", name, v.node));
+    }
+    ++expected;
+    ++visited;
+    depth = std::max(depth, v.depth);
+    const KdTree::Node& n = nodes[v.node];
+    if (n.is_leaf()) {
+      if (n.child >= cells.size() || cell_seen[n.child]) {
+        return Status::corruption(fmt::format("{}: tree node {}: bad cell {}", name, v.node, n.child));
+      }
+      cell_seen[n.child] = 1;
+      if (!(cells[n.child].bounds.lo == v.region.lo && cells[n.child].bounds.hi == v.region.hi)) {
+        return Status::corruption(fmt::format("{}: cell {}: bounds differ from its tree region", name, n.child));
+      }
+      continue;
+    }
+    const int a = static_cast<int>(n.axis_or_leaf);
+    if (a > 2 || !(n.split > v.region.lo[a] && n.split < v.region.hi[a]) || n.child <= v.node + 1 ||
+        n.child >= nodes.size()) {
+      return Status::corruption(fmt::format("{}: tree node {}: bad split", name, v.node));
+    }
+    Aabb lower = v.region, upper = v.region;
+    lower.hi[a] = n.split;
+    upper.lo[a] = n.split;
+    stack.push_back({n.child, upper, v.depth + 1});
+    stack.push_back({v.node + 1, lower, v.depth + 1});
+  }
+  if (visited != nodes.size()) return Status::corruption(fmt::format("{}: tree has unreachable nodes", name));
+  for (size_t i = 0; i < cells.size(); ++i) {
+    if (!cell_seen[i]) return Status::corruption(fmt::format("{}: cell {} is not in the tree", name, i));
+  }
+  return depth;
+}
+
+// The `portals` section when the store has one (Corruption naming the store and the section
+// when it is damaged); `out` stays empty without it.
+Status read_portals(const store::StoreReader& reader, std::optional<PortalGraph>& out) {
+  if (!reader.section(kPortalsSection)) return Status::ok();
+  const std::string where = fmt::format("{}: {} section", reader.name(), kPortalsSection);
+  auto bytes = reader.read_section(kPortalsSection);
+  if (!bytes && bytes.status().code() == Status::Code::Corruption) {
+    return Status::corruption(fmt::format("{}: {}", where, bytes.status().message()));
+  }
+  if (!bytes) return bytes.status();
+  auto graph = PortalGraph::deserialize(*bytes, where);
+  if (!graph) return graph.status();
+  out.emplace(std::move(*graph));
+  return Status::ok();
+}
+
 }  // namespace
 
 std::vector<uint8_t> StoreModelInfo::to_bytes() const {
   nlohmann::json j;
   j["version"] = kModelVersion;
-  j["codec"] = codec == CellCodec::Draco ? "draco" : "raw";
+  j["codec"] = std::string(cell_codec_name(codec));
   j["lattice"] = {{"origin", vec_json(lattice.origin)}, {"step", lattice.step}, {"bits", lattice.bits}};
   j["bounds"] = {{"lo", vec_json(bounds.lo)}, {"hi", vec_json(bounds.hi)}};
   j["input_primitives"] = input_primitives;
@@ -83,13 +200,9 @@ Result<StoreModelInfo> StoreModelInfo::from_bytes(std::span<const uint8_t> bytes
                                              version, kModelVersion));
     }
     const std::string codec = j.at("codec").get<std::string>();
-    if (codec == "draco") {
-      info.codec = CellCodec::Draco;
-    } else if (codec == "raw") {
-      info.codec = CellCodec::Raw;
-    } else {
-      return Status::unsupported(fmt::format("{}: unknown codec '{}'", where, codec));
-    }
+    const std::optional<CellCodec> tag = cell_codec_named(codec);
+    if (!tag) return Status::unsupported(fmt::format("{}: unknown codec '{}'", where, codec));
+    info.codec = *tag;
     const auto& lat = j.at("lattice");
     info.lattice.origin = json_vec(lat.at("origin"));
     info.lattice.step = lat.at("step").get<double>();
@@ -145,28 +258,28 @@ Result<StoreModelInfo> StoreModelInfo::from_bytes(std::span<const uint8_t> bytes
 
 std::vector<uint8_t> encode_tree(const std::vector<KdTree::Node>& nodes) {
   std::vector<uint8_t> out;
-  out.reserve(8 + kNodeBytes * nodes.size());
-  put_u64(out, nodes.size());
+  GeometryWriter w(out);
+  w.reserve(8 + kNodeBytes * nodes.size());
+  w.u64(nodes.size());
   for (const KdTree::Node& n : nodes) {
-    put_f64(out, n.split);
-    put_u32(out, n.axis_or_leaf);
-    put_u32(out, n.child);
+    w.f64(n.split);
+    w.u32(n.axis_or_leaf);
+    w.u32(n.child);
   }
   return out;
 }
 
 std::vector<uint8_t> encode_cells(const std::vector<StoreCell>& cells) {
   std::vector<uint8_t> out;
-  out.reserve(8 + kCellBytes * cells.size());
-  put_u64(out, cells.size());
+  GeometryWriter w(out);
+  w.reserve(8 + kCellBytes * cells.size());
+  w.u64(cells.size());
   for (const StoreCell& c : cells) {
-    put_vec(out, c.bounds.lo);
-    put_vec(out, c.bounds.hi);
-    put_vec(out, c.content.lo);
-    put_vec(out, c.content.hi);
-    put_u32(out, c.references);
-    put_u32(out, 0);
-    put_u64(out, c.page);
+    w.box(c.bounds);
+    w.box(c.content);
+    w.u32(c.references);
+    w.u32(0);
+    w.u64(c.page);
   }
   return out;
 }
@@ -187,121 +300,34 @@ Result<std::unique_ptr<StoreModel>> StoreModel::open(std::unique_ptr<store::Stor
 
 Status StoreModel::parse() {
   const std::string& name = reader_->name();
-  auto section = [&](std::string_view which) -> Result<std::vector<uint8_t>> {
-    auto bytes = reader_->read_section(which);
-    if (!bytes && bytes.status().code() == Status::Code::NotFound) {
-      return Status::corruption(fmt::format("{}: no '{}' section (not a model store?)", name, which));
-    }
-    return bytes;
-  };
-  auto model_bytes = section(kModelSection);
+  auto model_bytes = required_section(*reader_, kModelSection);
   if (!model_bytes) return model_bytes.status();
   auto info = StoreModelInfo::from_bytes(*model_bytes, name);
   if (!info) return info.status();
   info_ = std::move(*info);
 
-  auto tree_bytes = section(kTreeSection);
+  auto tree_bytes = required_section(*reader_, kTreeSection);
   if (!tree_bytes) return tree_bytes.status();
-  const std::vector<uint8_t>& tb = *tree_bytes;
-  if (tb.size() < 8 || (tb.size() - 8) % kNodeBytes != 0 || get_u64(tb.data()) != (tb.size() - 8) / kNodeBytes ||
-      tb.size() == 8) {
-    return Status::corruption(fmt::format("{}: tree section: size {} does not match its node count", name, tb.size()));
-  }
-  nodes_.resize((tb.size() - 8) / kNodeBytes);
-  for (size_t i = 0; i < nodes_.size(); ++i) {
-    const uint8_t* p = tb.data() + 8 + kNodeBytes * i;
-    nodes_[i] = {get_f64(p), get_u32(p + 8), get_u32(p + 12)};
-  }
+  auto nodes = decode_tree(*tree_bytes, name);
+  if (!nodes) return nodes.status();
+  nodes_ = std::move(*nodes);
 
-  auto cell_bytes = section(kCellsSection);
+  auto cell_bytes = required_section(*reader_, kCellsSection);
   if (!cell_bytes) return cell_bytes.status();
-  const std::vector<uint8_t>& cb = *cell_bytes;
-  if (cb.size() < 8 || (cb.size() - 8) % kCellBytes != 0 || get_u64(cb.data()) != (cb.size() - 8) / kCellBytes) {
-    return Status::corruption(fmt::format("{}: cells section: size {} does not match its cell count", name, cb.size()));
-  }
-  cells_.resize((cb.size() - 8) / kCellBytes);
+  auto cells = decode_cells(*cell_bytes, name, reader_->page_count());
+  if (!cells) return cells.status();
+  cells_ = std::move(*cells);
   uint64_t references = 0;
-  for (size_t i = 0; i < cells_.size(); ++i) {
-    const uint8_t* p = cb.data() + 8 + kCellBytes * i;
-    StoreCell& c = cells_[i];
-    c.bounds = get_box(p);
-    c.content = get_box(p + 48);
-    if (c.bounds.empty() || !finite(c.bounds)) return Status::corruption(fmt::format("{}: cell {}: bad bounds", name, i));
-    c.references = get_u32(p + 96);
-    c.page = get_u64(p + 104);
-    const bool has_page = c.page != StoreCell::kNoPage;
-    if (get_u32(p + 100) != 0 || (has_page && c.page >= reader_->page_count()) || has_page != (c.references > 0)) {
-      return Status::corruption(fmt::format("{}: cell {}: bad page reference", name, i));
-    }
-    if (!c.content.empty() && !(c.bounds.contains(c.content.lo) && c.bounds.contains(c.content.hi))) {
-      return Status::corruption(fmt::format("{}: cell {}: content outside the cell", name, i));
-    }
-    references += c.references;
-  }
+  for (const StoreCell& c : cells_) references += c.references;
   if (references != info_.references) {
     return Status::corruption(fmt::format("{}: cells hold {} references, the model section says {}", name, references,
                                           info_.references));
   }
 
-  // Walk the tree (preorder, lower child = next node): every node visited once, splits strictly
-  // inside their region, every cell reached once with exactly the region its record states.
-  struct Visit {
-    uint32_t node;
-    Aabb region;
-    uint32_t depth;
-  };
-  std::vector<Visit> stack{{0, info_.bounds, 0}};
-  std::vector<uint8_t> cell_seen(cells_.size(), 0);
-  size_t visited = 0;
-  uint32_t expected = 0;  // preorder: nodes are visited in index order
-  while (!stack.empty()) {
-    const Visit v = stack.back();
-    stack.pop_back();
-    if (v.node != expected || v.node >= nodes_.size()) {
-      return Status::corruption(fmt::format("{}: tree node {}: not in preorder", name, v.node));
-    }
-    ++expected;
-    ++visited;
-    depth_ = std::max(depth_, v.depth);
-    const KdTree::Node& n = nodes_[v.node];
-    if (n.is_leaf()) {
-      if (n.child >= cells_.size() || cell_seen[n.child]) {
-        return Status::corruption(fmt::format("{}: tree node {}: bad cell {}", name, v.node, n.child));
-      }
-      cell_seen[n.child] = 1;
-      if (!(cells_[n.child].bounds.lo == v.region.lo && cells_[n.child].bounds.hi == v.region.hi)) {
-        return Status::corruption(fmt::format("{}: cell {}: bounds differ from its tree region", name, n.child));
-      }
-      continue;
-    }
-    const int a = static_cast<int>(n.axis_or_leaf);
-    if (a > 2 || !(n.split > v.region.lo[a] && n.split < v.region.hi[a]) || n.child <= v.node + 1 ||
-        n.child >= nodes_.size()) {
-      return Status::corruption(fmt::format("{}: tree node {}: bad split", name, v.node));
-    }
-    Aabb lower = v.region, upper = v.region;
-    lower.hi[a] = n.split;
-    upper.lo[a] = n.split;
-    stack.push_back({n.child, upper, v.depth + 1});
-    stack.push_back({v.node + 1, lower, v.depth + 1});
-  }
-  if (visited != nodes_.size()) return Status::corruption(fmt::format("{}: tree has unreachable nodes", name));
-  for (size_t i = 0; i < cells_.size(); ++i) {
-    if (!cell_seen[i]) return Status::corruption(fmt::format("{}: cell {} is not in the tree", name, i));
-  }
-
-  if (reader_->section(kPortalsSection)) {
-    const std::string where = fmt::format("{}: {} section", name, kPortalsSection);
-    auto portal_bytes = reader_->read_section(kPortalsSection);
-    if (!portal_bytes && portal_bytes.status().code() == Status::Code::Corruption) {
-      return Status::corruption(fmt::format("{}: {}", where, portal_bytes.status().message()));
-    }
-    if (!portal_bytes) return portal_bytes.status();
-    auto graph = PortalGraph::deserialize(*portal_bytes, where);
-    if (!graph) return graph.status();
-    portals_.emplace(std::move(*graph));
-  }
-  return Status::ok();
+  auto depth = check_tree(nodes_, cells_, info_.bounds, name);
+  if (!depth) return depth.status();
+  depth_ = *depth;
+  return read_portals(*reader_, portals_);
 }
 
 Status StoreModel::read_cell(uint32_t cell, Scene& out) const {
@@ -316,7 +342,7 @@ Status StoreModel::read_cell(uint32_t cell, Scene& out) const {
 Status StoreModel::decode_page(uint32_t cell, uint8_t codec, std::span<const uint8_t> payload, Scene& out) const {
   out = Scene{};
   const StoreCell& c = cells_.at(cell);
-  if (codec != static_cast<uint8_t>(CellCodec::Raw) && codec != static_cast<uint8_t>(CellCodec::Draco)) {
+  if (!is_cell_codec(codec)) {
     return Status::corruption(
         fmt::format("{}: cell {} page {}: unknown codec {}", reader_->name(), cell, c.page, codec));
   }

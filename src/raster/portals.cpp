@@ -3,13 +3,12 @@
 #include "src/raster/portals.h"
 
 #include "src/core/byte_io.h"
-#include "store/page_format.h"
+#include "store/section_frame.h"
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
-#include <bit>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -21,15 +20,9 @@
 namespace frontier {
 namespace {
 
-using store::get_u32;
-using store::get_u64;
-using store::put_u32;
-using store::put_u64;
-
-// --- the section layout (store/FORMAT.md, "portals") ---------------------------------------
-constexpr std::array<uint8_t, 4> kMagic = {'F', 'P', 'R', 'T'};
+// --- the section layout (store/FORMAT.md, "portals"; framed by store/section_frame.h) --------
+constexpr store::SectionMagic kMagic = {'F', 'P', 'R', 'T'};
 constexpr uint32_t kVersion = 1;
-constexpr size_t kHeaderBytes = 24;             // magic, version u32, payload size u64, checksum u64
 constexpr size_t kCountsBytes = 32;             // wall f64, slab f64, room count u64, portal count u64
 constexpr size_t kRoomBytes = 48;               // interior lo, hi
 constexpr size_t kPortalBytes = 8 + 96 + 48;    // rooms 2 x u32, polygon 4 x xyz, opening lo, hi
@@ -229,21 +222,32 @@ Result<PortalGraph> PortalGraph::create(std::vector<Aabb> rooms, std::vector<Por
 }
 
 Status PortalGraph::finish() {
+  double magnitude = 0.0;
+  if (Status s = check_rooms(magnitude); !s) return s;
+  if (Status s = orient_portals(magnitude); !s) return s;
+  build_adjacency();
+  build_locator();
+  return Status::ok();
+}
+
+Status PortalGraph::check_rooms(double& magnitude) {
   if (!(std::isfinite(wall_) && wall_ >= 0.0 && std::isfinite(slab_) && slab_ >= 0.0)) {
     return Status::corruption(fmt::format("wall thickness {} or slab thickness {} is not a length", wall_, slab_));
   }
   if (rooms_.size() >= UINT32_MAX / 2 || portals_.size() >= UINT32_MAX / 2) {
     return Status::corruption(fmt::format("{} rooms and {} portals: too many", rooms_.size(), portals_.size()));
   }
-  double magnitude = 0.0;
+  magnitude = 0.0;
   for (size_t r = 0; r < rooms_.size(); ++r) {
     if (!proper(rooms_[r])) return Status::corruption(fmt::format("room {}: bounds empty or not finite", r));
     magnitude = std::max(magnitude, rooms_[r].magnitude());
   }
   slack_ = 1e-9 * (1.0 + magnitude);
+  return Status::ok();
+}
 
+Status PortalGraph::orient_portals(double magnitude) {
   normals_.resize(portals_.size());
-  std::vector<uint32_t> degree(rooms_.size() + 1, 0);
   for (size_t i = 0; i < portals_.size(); ++i) {
     const Portal& p = portals_[i];
     const auto [a, b] = p.rooms;
@@ -272,22 +276,28 @@ Status PortalGraph::finish() {
       return Status::corruption(fmt::format("portal {}: rooms {} and {} are not on opposite sides of it", i, a, b));
     }
     normals_[i] = n;
-    ++degree[a];
-    ++degree[b];
   }
+  return Status::ok();
+}
 
+void PortalGraph::build_adjacency() {
   adjacency_first_.assign(rooms_.size() + 1, 0);
-  for (size_t r = 0; r < rooms_.size(); ++r) adjacency_first_[r + 1] = adjacency_first_[r] + degree[r];
+  for (const Portal& p : portals_) {
+    for (uint32_t room : p.rooms) ++adjacency_first_[room + 1];
+  }
+  for (size_t r = 0; r < rooms_.size(); ++r) adjacency_first_[r + 1] += adjacency_first_[r];
   adjacency_.resize(adjacency_first_.back());
   std::vector<uint32_t> fill(adjacency_first_.begin(), adjacency_first_.end() - 1);
   for (uint32_t i = 0; i < portals_.size(); ++i) {
     for (uint32_t room : portals_[i].rooms) adjacency_[fill[room]++] = i;
   }
+}
 
+void PortalGraph::build_locator() {
   // The locator: a uniform grid whose cells are about a typical room in size (at most a few
   // cells per box), every box listed in each grid cell it overlaps.
   locator_ = Locator{};
-  if (rooms_.empty()) return Status::ok();
+  if (rooms_.empty()) return;
   const uint32_t item_count = static_cast<uint32_t>(rooms_.size() + portals_.size());
   auto item_box = [&](uint32_t item) {
     return item < rooms_.size() ? room_region(item) : doorway(item - static_cast<uint32_t>(rooms_.size()));
@@ -332,7 +342,6 @@ Status PortalGraph::finish() {
   for (uint32_t item = 0; item < item_count; ++item) {
     for_cells(item_box(item), [&](size_t c) { locator_.items[next[c]++] = item; });
   }
-  return Status::ok();
 }
 
 Aabb PortalGraph::room_region(uint32_t room) const {
@@ -403,67 +412,43 @@ Result<PortalGraph> PortalGraph::from_sidecar(const std::string& path) {
 
 std::vector<uint8_t> PortalGraph::serialize() const {
   std::vector<uint8_t> payload;
-  payload.reserve(kCountsBytes + kRoomBytes * rooms_.size() + kPortalBytes * portals_.size());
-  put_f64(payload, wall_);
-  put_f64(payload, slab_);
-  put_u64(payload, rooms_.size());
-  put_u64(payload, portals_.size());
-  for (const Aabb& r : rooms_) {
-    put_vec(payload, r.lo);
-    put_vec(payload, r.hi);
-  }
+  GeometryWriter w(payload);
+  w.reserve(kCountsBytes + kRoomBytes * rooms_.size() + kPortalBytes * portals_.size());
+  w.f64(wall_);
+  w.f64(slab_);
+  w.u64(rooms_.size());
+  w.u64(portals_.size());
+  for (const Aabb& r : rooms_) w.box(r);
   for (const Portal& p : portals_) {
-    put_u32(payload, p.rooms[0]);
-    put_u32(payload, p.rooms[1]);
-    for (const Vec3& v : p.polygon) put_vec(payload, v);
-    put_vec(payload, p.opening.lo);
-    put_vec(payload, p.opening.hi);
+    w.u32(p.rooms[0]);
+    w.u32(p.rooms[1]);
+    for (const Vec3& v : p.polygon) w.vec3(v);
+    w.box(p.opening);
   }
-  std::vector<uint8_t> out(kMagic.begin(), kMagic.end());
-  out.reserve(kHeaderBytes + payload.size());
-  put_u32(out, kVersion);
-  put_u64(out, payload.size());
-  put_u64(out, store::checksum(payload));
-  out.insert(out.end(), payload.begin(), payload.end());
-  return out;
+  return store::frame_section(kMagic, kVersion, payload);
 }
 
 Result<PortalGraph> PortalGraph::deserialize(std::span<const uint8_t> bytes, const std::string& what) {
   const auto corrupt = [&](const std::string& why) { return Status::corruption(fmt::format("{}: {}", what, why)); };
-  if (bytes.size() < kHeaderBytes) return corrupt(fmt::format("truncated header ({} bytes)", bytes.size()));
-  if (std::memcmp(bytes.data(), kMagic.data(), kMagic.size()) != 0) return corrupt("bad magic");
-  const uint32_t version = get_u32(bytes.data() + 4);
-  if (version == 0) return corrupt("bad version 0");
-  if (version > kVersion) {
-    return Status::unsupported(fmt::format("{}: version {} is newer than this reader ({})", what, version, kVersion));
-  }
-  const uint64_t size = get_u64(bytes.data() + 8);
-  if (size != bytes.size() - kHeaderBytes) {
-    return corrupt(fmt::format("payload size {} but {} bytes follow the header", size, bytes.size() - kHeaderBytes));
-  }
-  const std::span<const uint8_t> payload = bytes.subspan(kHeaderBytes);
-  if (store::checksum(payload) != get_u64(bytes.data() + 16)) return corrupt("checksum mismatch");
-  if (payload.size() < kCountsBytes) return corrupt("truncated counts");
-  const uint8_t* p = payload.data();
-  const double wall = get_f64(p), slab = get_f64(p + 8);
-  const uint64_t room_count = get_u64(p + 16), portal_count = get_u64(p + 24);
-  const uint64_t body = payload.size() - kCountsBytes;
+  auto section = store::unframe_section(bytes, kMagic, kVersion, what);
+  if (!section) return section.status();
+  GeometryReader r(section->payload);
+  const double wall = r.f64(), slab = r.f64();
+  const uint64_t room_count = r.u64(), portal_count = r.u64();
+  if (!r.ok()) return corrupt("truncated counts");
+  const uint64_t body = r.remaining();
   if (room_count > body / kRoomBytes || portal_count > (body - room_count * kRoomBytes) / kPortalBytes ||
       room_count * kRoomBytes + portal_count * kPortalBytes != body) {
     return corrupt(fmt::format("{} rooms and {} portals do not fill {} bytes", room_count, portal_count, body));
   }
-  p += kCountsBytes;
   std::vector<Aabb> rooms(room_count);
-  for (Aabb& r : rooms) {
-    r = get_box(p);
-    p += kRoomBytes;
-  }
+  for (Aabb& room : rooms) room = r.box();
   std::vector<Portal> portals(portal_count);
   for (Portal& q : portals) {
-    q.rooms = {get_u32(p), get_u32(p + 4)};
-    for (int k = 0; k < 4; ++k) q.polygon[k] = get_vec(p + 8 + 24 * k);
-    q.opening = get_box(p + 104);
-    p += kPortalBytes;
+    q.rooms[0] = r.u32();
+    q.rooms[1] = r.u32();
+    for (Vec3& corner : q.polygon) corner = r.vec3();
+    q.opening = r.box();
   }
   auto graph = create(std::move(rooms), std::move(portals), wall, slab);
   if (!graph) return corrupt(graph.status().message());

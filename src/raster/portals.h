@@ -80,7 +80,7 @@ class PortalGraph {
   static Result<PortalGraph> from_sidecar(const std::string& path);
 
   // The binary section layout of store/FORMAT.md ("portals"): magic, version, payload size and
-  // checksum, then the rooms and portals as little-endian doubles. Only the parts are stored;
+  // checksum (store/section_frame.h), then the rooms and portals as little-endian doubles. Only the parts are stored;
   // the lookup structures are rebuilt on load.
   std::vector<uint8_t> serialize() const;
   // Safe on untrusted bytes: truncated, damaged or inconsistent input gives Corruption (a newer
@@ -131,7 +131,12 @@ class PortalGraph {
     std::vector<uint32_t> items;  // room id, or room_count() + portal id
   };
 
-  Status finish();  // checks the invariants, builds adjacency, planes and the locator
+  // Checks the invariants, then derives the planes, the adjacency and the locator.
+  Status finish();
+  Status check_rooms(double& magnitude);  // thicknesses, counts, room boxes; sets slack_
+  Status orient_portals(double magnitude);  // checks the portals, sets normals_
+  void build_adjacency();
+  void build_locator();
   Aabb doorway(uint32_t portal) const;  // the opening box, a little enlarged
   // True when a ray from `eye` can cross the portal's plane leaving `room`.
   bool faces(uint32_t portal, uint32_t room, const Vec3& eye) const;
