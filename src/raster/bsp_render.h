@@ -11,7 +11,8 @@
 // Coverage in the mask renderer is exact: vertices snap to 1/256 pixel (every sample position
 // of N <= 16 is on that lattice), edge functions are 64-bit integers (|values| < 2^60 for screens
 // up to 2^20), and the top-left rule gives a sample on an edge shared by two faces to exactly
-// one of them. Clipping (near plane, a one-pixel band around the screen) is the Rasterizer's.
+// one of them. Clipping (near plane, a one-pixel band around the screen) is the Rasterizer's
+// (src/raster/clip.h).
 //
 // Thread safety: one thread drives a frame; the tree is shared read-only; workers are internal.
 #pragma once

@@ -185,6 +185,8 @@ class ImrRenderer {
  private:
   class Program;
   void issue(uint32_t prim, const View& view, double near, ImrCounters& counters);
+  void shade(const View& view, ImrCounters& counters);
+  Rgb shade_sample(uint32_t prim, const Ray& ray, double depth, Counters& shading, uint64_t& fetches) const;
 
   const Scene& scene_;
   ImrOptions options_;
