@@ -2,9 +2,11 @@
 // (§4.2). The mask renderer works in batches of faces in traversal order: set-up in parallel
 // (clip, project, snap, integer edge functions: src/raster/clip.h, the Rasterizer's), binning
 // into tiles in order, then tiles in parallel; each tile keeps its count of full pixels and
-// skips faces once it is full, and the traversal stops once every tile is.
+// skips faces once it is full, and the traversal stops once every tile is. BspFrameRenderer
+// puts render_bsp behind the FrameRenderer interface.
 #include "src/raster/bsp_render.h"
 
+#include <nlohmann/json.hpp>
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
@@ -417,6 +419,34 @@ BspFrame render_bsp(const BspTree& tree, const View& view, const BspRenderOption
   }
   frame.counters.objects_outside_region = outside;
   frame.counters.total_ms = ms_since(start);
+  return frame;
+}
+
+BspFrameRenderer::BspFrameRenderer(BspTree tree, const BspRenderOptions& options)
+    : tree_(std::move(tree)), options_(options) {}
+
+Result<Frame> BspFrameRenderer::render(const View& view) {
+  BspFrame bsp = render_bsp(tree_, view, options_);
+  const BspFrameCounters& c = bsp.counters;
+  const bool front_to_back = options_.order == BspOrder::FrontToBack;
+  Frame frame;
+  frame.colors = std::move(bsp.colors);
+  frame.ids = std::move(bsp.ids);
+  for (uint32_t& id : frame.ids) {
+    if (id != kNoPrim) id = tree_.faces()[id].source;
+  }
+  frame.ms = c.total_ms;
+  frame.stats = nlohmann::json::parse(tree_.stats().to_json());
+  frame.stats["method"] = "bsp";
+  frame.stats["order"] = front_to_back ? "front-to-back" : "back-to-front";
+  frame.stats["aa"] = front_to_back ? options_.aa : 0;
+  frame.stats["width"] = view.width;
+  frame.stats["height"] = view.height;
+  frame.stats["frame"] = {{"nodes_visited", c.nodes_visited},     {"faces_drawn", c.faces_drawn},
+                          {"faces_culled_back", c.faces_culled_back}, {"pixel_visits", c.pixel_visits},
+                          {"pixels_skipped_full", c.pixels_skipped_full}, {"pixels_full", c.pixels_full},
+                          {"traverse_ms", c.traverse_ms},           {"raster_ms", c.raster_ms},
+                          {"ms", c.total_ms}};
   return frame;
 }
 

@@ -1,6 +1,6 @@
 // Immediate-mode ray casting (see the header): implicit surfaces and their ray test, bounding
 // polyhedra and near caps, object issue orders, ImrRenderer's frame (issue, rasterize with
-// ray-cast bound fragments, deferred lighting).
+// ray-cast bound fragments, deferred lighting) and ImrFrameRenderer.
 #include "src/raster/imr.h"
 
 #include <nlohmann/json.hpp>
@@ -771,6 +771,27 @@ void ImrRenderer::shade(const View& view, ImrCounters& counters) {
     counters.shading_ops += l.shading.shading_ops;
   }
   raster_->set_colors(std::move(colors));
+}
+
+void add_issue_stats(nlohmann::json& stats, const char* method, IssueOrder order, const View& view,
+                     size_t primitives) {
+  stats["method"] = method;
+  stats["order"] = issue_order_name(order);
+  stats["width"] = view.width;
+  stats["height"] = view.height;
+  stats["primitives"] = primitives;
+}
+
+Result<Frame> ImrFrameRenderer::render(const View& view) {
+  const ImrCounters counters = imr_.render(view);
+  Frame frame;
+  frame.colors = imr_.rasterizer().colors();
+  frame.ids = source_ids(scene_, imr_.rasterizer().ids());
+  frame.ms = counters.ms;
+  frame.stats = counters.to_json();
+  frame.stats["bound_triangles"] = imr_.bound_triangles();
+  add_issue_stats(frame.stats, "imr", imr_.options().order, view, scene_.size());
+  return frame;
 }
 
 }  // namespace frontier
