@@ -15,14 +15,6 @@
 
 namespace frontier {
 
-bool parse_method(const std::string& name, Method& method) {
-  if (name == "brute") method = Method::Brute;
-  else if (name == "raywalk") method = Method::RayWalk;
-  else if (name == "frustum") method = Method::Frustum;
-  else return false;
-  return true;
-}
-
 const char* method_name(Method method) {
   switch (method) {
     case Method::Brute: return "brute";

@@ -24,8 +24,7 @@ namespace frontier {
 // ray-casting strategies inside one.
 enum class Method { Brute, RayWalk, Frustum };
 
-// Parses "brute", "raywalk", "frustum".
-bool parse_method(const std::string& name, Method& method);
+// "brute", "raywalk", "frustum".
 const char* method_name(Method method);
 
 struct RenderOptions {
