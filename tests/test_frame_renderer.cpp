@@ -67,46 +67,46 @@ void expect_existing_ids(const Scene& scene, const Frame& frame, const std::stri
   EXPECT_GT(shown, 0u) << what;
 }
 
-TEST(FrameRenderer, RayCastingGivesBruteForceInputIds) {
-  const Scene scene = scene_with_sources();
-  const KdTree tree = KdTree::build(scene);
-  const View view = test_view();
-  for (const Method method : {Method::Brute, Method::RayWalk, Method::Frustum}) {
-    RenderOptions options;
-    options.method = method;
-    options.threads = 2;
-    RayCastFrameRenderer renderer(scene, tree, options);
-    const Frame frame = render(renderer, view);
-    expect_brute_force_ids(scene, view, frame, method_name(method));
-    EXPECT_EQ(frame.stats["method"], method_name(method));
-    EXPECT_EQ(frame.stats["samples"].get<uint64_t>(), view.pixels());
-  }
-}
-
-TEST(FrameRenderer, ImmediateModeRayCastingGivesBruteForceInputIds) {
-  const Scene scene = scene_with_sources();
-  const View view = test_view();
-  ImrOptions options;
+RenderOptions ray_casting(Method method) {
+  RenderOptions options;
+  options.method = method;
   options.threads = 2;
-  ImrFrameRenderer renderer(scene, options);
-  const Frame frame = render(renderer, view);
-  expect_brute_force_ids(scene, view, frame, "imr");
-  EXPECT_EQ(frame.stats["method"], "imr");
-  EXPECT_GT(frame.stats["ray_object_tests"].get<uint64_t>(), 0u);
+  return options;
 }
 
-TEST(FrameRenderer, RasterizingClassesGiveBruteForceInputIds) {
-  const Scene scene = tessellate(scene_with_sources());  // the classes draw triangles
+CullOptions rasterizing(Visibility visibility) {
+  CullOptions options;
+  options.visibility = visibility;
+  options.threads = 2;
+  return options;
+}
+
+TEST(FrameRenderer, ExactMethodsGiveBruteForceInputIds) {
+  const Scene scene = scene_with_sources();
   const KdTree tree = KdTree::build(scene);
+  const Scene triangles = tessellate(scene);  // the rasterizing classes draw triangles
+  const KdTree triangle_tree = KdTree::build(triangles);
+  ImrOptions imr;
+  imr.threads = 2;
+  struct Exact {
+    std::string name;  // the stats' "method" or "visibility"
+    const Scene& scene;
+    std::unique_ptr<FrameRenderer> renderer;
+  };
+  std::vector<Exact> exact;
+  for (const Method m : {Method::Brute, Method::RayWalk, Method::Frustum}) {
+    exact.push_back({method_name(m), scene, std::make_unique<RayCastFrameRenderer>(scene, tree, ray_casting(m))});
+  }
+  exact.push_back({"imr", scene, std::make_unique<ImrFrameRenderer>(scene, imr)});
+  for (const Visibility v : {Visibility::kExhaustive, Visibility::kFrustumCull, Visibility::kOcclusionCull}) {
+    exact.push_back(
+        {visibility_name(v), triangles, std::make_unique<CullingFrameRenderer>(triangles, triangle_tree, rasterizing(v))});
+  }
   const View view = test_view();
-  for (const Visibility visibility : {Visibility::kExhaustive, Visibility::kFrustumCull, Visibility::kOcclusionCull}) {
-    CullOptions options;
-    options.visibility = visibility;
-    options.threads = 2;
-    CullingFrameRenderer renderer(scene, tree, options);
-    const Frame frame = render(renderer, view);
-    expect_brute_force_ids(scene, view, frame, visibility_name(visibility));
-    EXPECT_EQ(frame.stats["visibility"], visibility_name(visibility));
+  for (Exact& e : exact) {
+    const Frame frame = render(*e.renderer, view);
+    expect_brute_force_ids(e.scene, view, frame, e.name);
+    EXPECT_EQ(frame.stats.value("method", frame.stats.value("visibility", "")), e.name);
   }
 }
 
