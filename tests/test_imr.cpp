@@ -15,14 +15,6 @@
 namespace frontier {
 namespace {
 
-std::vector<uint32_t> source_ids(const Scene& scene, const std::vector<uint32_t>& ids) {
-  std::vector<uint32_t> out(ids.size(), kNoPrim);
-  for (size_t i = 0; i < ids.size(); ++i) {
-    if (ids[i] != kNoPrim) out[i] = scene.prims[ids[i]].source;
-  }
-  return out;
-}
-
 // IMR ids against brute force: differing pixels must be ties.
 testing::Comparison compare_with_brute_force(const Scene& scene, const View& view, ImrRenderer& imr,
                                              ImrCounters* counters = nullptr) {

@@ -39,13 +39,7 @@ Scene random_triangles(std::mt19937_64& rng, int count) {
 }
 
 // Source ids of a rasterized frame (kNoPrim for background).
-std::vector<uint32_t> source_ids(const Scene& scene, Rasterizer& r) {
-  std::vector<uint32_t> ids = r.ids();
-  for (uint32_t& id : ids) {
-    if (id != kNoPrim) id = scene.prims[id].source;
-  }
-  return ids;
-}
+std::vector<uint32_t> source_ids(const Scene& scene, Rasterizer& r) { return frontier::source_ids(scene, r.ids()); }
 
 struct Frame {
   std::vector<uint32_t> ids;  // scene primitive indices

@@ -131,50 +131,41 @@ double elapsed_ms(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
-}  // namespace
-
-std::unique_ptr<MesaRenderer> MesaRenderer::create(int width, int height, std::string& error) {
-  if (width < 1 || height < 1) {
-    error = fmt::format("MesaRenderer: framebuffer size {}x{} is not positive", width, height);
-    return nullptr;
-  }
-  std::unique_ptr<MesaRenderer> r(new MesaRenderer());
-  r->width_ = width;
-  r->height_ = height;
-  r->context_ = std::make_unique<Context>();
-  Context& c = *r->context_;
-
-  // The display: Mesa's surfaceless platform needs no window system; otherwise whatever the
-  // default display is (X11 or Wayland when one exists).
+// The display: Mesa's surfaceless platform needs no window system; otherwise whatever the
+// default display is (X11 or Wayland when one exists). Sets `surfaceless_platform` to which.
+bool open_display(MesaRenderer::Context& c, bool& surfaceless_platform, std::string& error) {
   const char* client_extensions = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
-  bool surfaceless_platform = false;
-  if (has_extension(client_extensions, "EGL_MESA_platform_surfaceless")) {
+  const bool has_surfaceless = has_extension(client_extensions, "EGL_MESA_platform_surfaceless");
+  surfaceless_platform = false;
+  if (has_surfaceless) {
     c.display = eglGetPlatformDisplay(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, nullptr);
     surfaceless_platform = c.display != EGL_NO_DISPLAY && acquire_display(c.display);
     if (!surfaceless_platform) c.display = EGL_NO_DISPLAY;
   }
-  if (c.display == EGL_NO_DISPLAY) {
-    c.display = eglGetDisplay(EGL_DEFAULT_DISPLAY);
-    if (c.display == EGL_NO_DISPLAY || !acquire_display(c.display)) {
-      error = "MesaRenderer: " + egl_error(has_extension(client_extensions, "EGL_MESA_platform_surfaceless")
-                                               ? "eglInitialize on the surfaceless platform and on the default display"
-                                               : "eglInitialize on the default display (no EGL_MESA_platform_surfaceless)");
-      c.display = EGL_NO_DISPLAY;
-      return nullptr;
-    }
-  }
+  if (c.display != EGL_NO_DISPLAY) return true;
+  c.display = eglGetDisplay(EGL_DEFAULT_DISPLAY);
+  if (c.display != EGL_NO_DISPLAY && acquire_display(c.display)) return true;
+  error = "MesaRenderer: " + egl_error(has_surfaceless
+                                           ? "eglInitialize on the surfaceless platform and on the default display"
+                                           : "eglInitialize on the default display (no EGL_MESA_platform_surfaceless)");
+  c.display = EGL_NO_DISPLAY;  // not acquired: the destructor must not release it
+  return false;
+}
+
+// A desktop OpenGL context on the display, current on this thread (with a 1x1 pbuffer only
+// when surfaceless contexts are missing); then the driver module is pinned.
+bool create_context(MesaRenderer::Context& c, std::string& error) {
   if (!eglBindAPI(EGL_OPENGL_API)) {
     error = "MesaRenderer: " + egl_error("eglBindAPI(EGL_OPENGL_API) (no desktop OpenGL in this EGL)");
-    return nullptr;
+    return false;
   }
-
   const EGLint config_attributes[] = {EGL_SURFACE_TYPE, EGL_PBUFFER_BIT, EGL_RENDERABLE_TYPE, EGL_OPENGL_BIT,
                                       EGL_RED_SIZE, 8, EGL_GREEN_SIZE, 8, EGL_BLUE_SIZE, 8, EGL_NONE};
   EGLConfig config = nullptr;
   EGLint configs = 0;
   if (!eglChooseConfig(c.display, config_attributes, &config, 1, &configs) || configs < 1) {
     error = "MesaRenderer: " + egl_error("eglChooseConfig (no pbuffer-capable desktop OpenGL config)");
-    return nullptr;
+    return false;
   }
   // No version or profile attributes: a legacy context, which is the compatibility profile with
   // the highest version the driver offers (fixed-function lighting needs it).
@@ -182,7 +173,7 @@ std::unique_ptr<MesaRenderer> MesaRenderer::create(int width, int height, std::s
   c.context = eglCreateContext(c.display, config, EGL_NO_CONTEXT, context_attributes);
   if (c.context == EGL_NO_CONTEXT) {
     error = "MesaRenderer: " + egl_error("eglCreateContext (desktop OpenGL, compatibility)");
-    return nullptr;
+    return false;
   }
   const char* display_extensions = eglQueryString(c.display, EGL_EXTENSIONS);
   if (!has_extension(display_extensions, "EGL_KHR_surfaceless_context")) {
@@ -190,31 +181,28 @@ std::unique_ptr<MesaRenderer> MesaRenderer::create(int width, int height, std::s
     c.surface = eglCreatePbufferSurface(c.display, config, pbuffer_attributes);
     if (c.surface == EGL_NO_SURFACE) {
       error = "MesaRenderer: " + egl_error("eglCreatePbufferSurface (no surfaceless contexts either)");
-      return nullptr;
+      return false;
     }
   }
   if (!eglMakeCurrent(c.display, c.surface, c.surface, c.context)) {
     error = "MesaRenderer: " + egl_error("eglMakeCurrent");
-    return nullptr;
+    return false;
   }
-  {
-    std::lock_guard<std::mutex> lock(display_mutex());
-    pin_driver_modules();
-  }
+  std::lock_guard<std::mutex> lock(display_mutex());
+  pin_driver_modules();
+  return true;
+}
 
-  const std::string renderer = gl_string(GL_RENDERER);
-  const std::string version = gl_string(GL_VERSION);
-  r->software_ = renderer.find("llvmpipe") != std::string::npos || renderer.find("softpipe") != std::string::npos;
-  r->renderer_ = renderer + " / " + version;
-  if (!r->software_) r->renderer_ += " [NOT a software rasterizer: hardware or unknown driver]";
-  if (!surfaceless_platform) r->renderer_ += " [default EGL display, not surfaceless]";
-
+// The width x height framebuffer object (RGBA8 colour, 24-bit depth) every pass draws into.
+// `renderer` names the driver in the messages.
+bool create_framebuffer(MesaRenderer::Context& c, int width, int height, const std::string& renderer,
+                        std::string& error) {
   GLint max_size = 0;
   glGetIntegerv(GL_MAX_RENDERBUFFER_SIZE, &max_size);
   if (width > max_size || height > max_size) {
     error = fmt::format("MesaRenderer: framebuffer size {}x{} exceeds GL_MAX_RENDERBUFFER_SIZE {} ({})", width,
-                        height, max_size, r->renderer_);
-    return nullptr;
+                        height, max_size, renderer);
+    return false;
   }
   glGenFramebuffers(1, &c.framebuffer);
   glGenRenderbuffers(1, &c.color_buffer);
@@ -233,11 +221,14 @@ std::unique_ptr<MesaRenderer> MesaRenderer::create(int width, int height, std::s
   const GLenum status = glCheckFramebufferStatus(GL_FRAMEBUFFER);
   if (status != GL_FRAMEBUFFER_COMPLETE) {
     error = fmt::format("MesaRenderer: framebuffer {}x{} incomplete (status 0x{:04x}, {})", width, height, status,
-                        r->renderer_);
-    return nullptr;
+                        renderer);
+    return false;
   }
+  return true;
+}
 
-  // State every pass shares. Dithering would perturb the id colours.
+// State every pass shares. Dithering would perturb the id colours.
+void set_shared_state(int width, int height) {
   glDisable(GL_DITHER);
   glDisable(GL_BLEND);
   glDisable(GL_MULTISAMPLE);
@@ -247,6 +238,33 @@ std::unique_ptr<MesaRenderer> MesaRenderer::create(int width, int height, std::s
   glPixelStorei(GL_PACK_ALIGNMENT, 1);
   glViewport(0, 0, width, height);
   glEnableClientState(GL_VERTEX_ARRAY);
+}
+
+}  // namespace
+
+std::unique_ptr<MesaRenderer> MesaRenderer::create(int width, int height, std::string& error) {
+  if (width < 1 || height < 1) {
+    error = fmt::format("MesaRenderer: framebuffer size {}x{} is not positive", width, height);
+    return nullptr;
+  }
+  // On failure `r` goes out of scope: its destructor releases whatever was set up.
+  std::unique_ptr<MesaRenderer> r(new MesaRenderer());
+  r->width_ = width;
+  r->height_ = height;
+  r->context_ = std::make_unique<Context>();
+  Context& c = *r->context_;
+  bool surfaceless_platform = false;
+  if (!open_display(c, surfaceless_platform, error) || !create_context(c, error)) return nullptr;
+
+  const std::string renderer = gl_string(GL_RENDERER);
+  const std::string version = gl_string(GL_VERSION);
+  r->software_ = renderer.find("llvmpipe") != std::string::npos || renderer.find("softpipe") != std::string::npos;
+  r->renderer_ = renderer + " / " + version;
+  if (!r->software_) r->renderer_ += " [NOT a software rasterizer: hardware or unknown driver]";
+  if (!surfaceless_platform) r->renderer_ += " [default EGL display, not surfaceless]";
+
+  if (!create_framebuffer(c, width, height, r->renderer_, error)) return nullptr;
+  set_shared_state(width, height);
   if (const GLenum e = glGetError(); e != GL_NO_ERROR) {
     error = fmt::format("MesaRenderer: GL error 0x{:04x} while setting up ({})", e, r->renderer_);
     return nullptr;

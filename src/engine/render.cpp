@@ -1,7 +1,10 @@
-// render_frame: method dispatch.
+// Renderer: the ray-casting strategies' dispatch; RayCastFrameRenderer: the same behind the
+// FrameRenderer interface.
 #include "src/engine/render.h"
 
 #include "src/engine/ray_walk.h"
+
+#include <nlohmann/json.hpp>
 
 #include <tbb/blocked_range2d.h>
 #include <tbb/enumerable_thread_specific.h>
@@ -11,14 +14,6 @@
 #include <chrono>
 
 namespace frontier {
-
-bool parse_method(const std::string& name, Method& method) {
-  if (name == "brute") method = Method::Brute;
-  else if (name == "raywalk") method = Method::RayWalk;
-  else if (name == "frustum") method = Method::Frustum;
-  else return false;
-  return true;
-}
 
 const char* method_name(Method method) {
   switch (method) {
@@ -90,6 +85,25 @@ Counters render_frame(const Scene& scene, const KdTree& tree, const View& view,
                       const RenderOptions& options, SampleBuffer& buffer) {
   Renderer renderer(scene, tree, options.threads);
   return renderer.render(view, options, buffer);
+}
+
+RayCastFrameRenderer::RayCastFrameRenderer(const Scene& scene, const KdTree& tree, const RenderOptions& options)
+    : scene_(scene), tree_(tree), options_(options), renderer_(scene, tree, options.threads) {}
+
+Result<Frame> RayCastFrameRenderer::render(const View& view) {
+  const Counters counters = renderer_.render(view, options_, buffer_);
+  Frame frame;
+  frame.colors = buffer_.image();
+  frame.ids = id_image(scene_, buffer_);
+  frame.ms = counters.ms;
+  frame.stats = counters.to_json();
+  frame.stats["method"] = method_name(options_.method);
+  frame.stats["width"] = view.width;
+  frame.stats["height"] = view.height;
+  frame.stats["primitives"] = scene_.size();
+  frame.stats["cells"] = tree_.cells().size();
+  frame.stats["shadows_declared"] = !scene_.lights.empty();
+  return frame;
 }
 
 std::vector<uint32_t> id_image(const Scene& scene, const SampleBuffer& buffer) {

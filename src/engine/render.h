@@ -1,9 +1,11 @@
-// One call to render a complete frame with any method, for the command line, tests and
-// benchmarks. Brute force and ray walking resolve every pixel per ray; frustum casting runs
-// its job queue to completion (or to a budget).
+// Rendering a complete frame by ray casting, for the command line, tests and benchmarks. Brute
+// force and ray walking resolve every pixel per ray; frustum casting runs its job queue to
+// completion (or to a budget). RayCastFrameRenderer puts all three behind the FrameRenderer
+// interface (src/engine/frame_renderer.h) that every rendering method shares.
 #pragma once
 
 #include "src/core/counters.h"
+#include "src/engine/frame_renderer.h"
 #include "src/engine/frustum.h"
 #include "src/engine/kdtree.h"
 #include "src/core/sample_buffer.h"
@@ -17,10 +19,12 @@
 
 namespace frontier {
 
+// How Renderer finds each pixel's first hit. Which method of all (ray casting or another) a
+// frame is rendered with is the caller's choice of FrameRenderer; this picks among the three
+// ray-casting strategies inside one.
 enum class Method { Brute, RayWalk, Frustum };
 
-// Parses "brute", "raywalk", "frustum".
-bool parse_method(const std::string& name, Method& method);
+// "brute", "raywalk", "frustum".
 const char* method_name(Method method);
 
 struct RenderOptions {
@@ -54,6 +58,22 @@ class Renderer {
   std::unique_ptr<FrustumCaster> caster_;  // made on first use
   struct Arena;
   std::unique_ptr<Arena> arena_;
+};
+
+// Ray casting as a FrameRenderer: a Renderer and its sample buffer kept from frame to frame.
+// stats: Counters::to_json() plus method, width, height, primitives, cells and
+// shadows_declared (whether the scene has lights). `scene` and `tree` must outlive it.
+class RayCastFrameRenderer final : public FrameRenderer {
+ public:
+  RayCastFrameRenderer(const Scene& scene, const KdTree& tree, const RenderOptions& options);
+  Result<Frame> render(const View& view) override;
+
+ private:
+  const Scene& scene_;
+  const KdTree& tree_;
+  RenderOptions options_;
+  Renderer renderer_;
+  SampleBuffer buffer_;
 };
 
 // One frame with a fresh Renderer.

@@ -1,10 +1,12 @@
 // BSP frames: painter's through the Rasterizer, and the front-to-back coverage-mask renderer
 // (§4.2). The mask renderer works in batches of faces in traversal order: set-up in parallel
-// (clip, project, snap, integer edge functions), binning into tiles in order, then tiles in
-// parallel; each tile keeps its count of full pixels and skips faces once it is full, and the
-// traversal stops once every tile is.
+// (clip, project, snap, integer edge functions: src/raster/clip.h, the Rasterizer's), binning
+// into tiles in order, then tiles in parallel; each tile keeps its count of full pixels and
+// skips faces once it is full, and the traversal stops once every tile is. BspFrameRenderer
+// puts render_bsp behind the FrameRenderer interface.
 #include "src/raster/bsp_render.h"
 
+#include <nlohmann/json.hpp>
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
@@ -18,13 +20,10 @@
 namespace frontier {
 namespace {
 
-__extension__ typedef __int128 Int128;
-
 constexpr int kSnapBits = 8;  // 1/256 pixel: every sample position of N <= 16 lies on it
 constexpr int64_t kSnap = int64_t{1} << kSnapBits;
 constexpr int kTile = 32;
 constexpr size_t kBatchFaces = size_t{1} << 15;
-constexpr double kAutoNearFraction = 1e-9;  // as the Rasterizer's
 
 double ms_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
@@ -62,7 +61,7 @@ class MaskRenderer {
   MaskRenderer(const View& view, const BspRenderOptions& options)
       : view_(view), options_(options), n_(options.aa), words_((n_ * n_ + 63) / 64),
         arena_(options.threads > 0 ? options.threads : tbb::info::default_concurrency()) {
-    to_clip_ = glm::inverse(glm::dmat3(view.step_x, view.step_y, view.base));
+    clip_ = ClipTransform::of(view);
     tiles_x_ = (view.width + kTile - 1) / kTile;
     tiles_y_ = (view.height + kTile - 1) / kTile;
     const size_t pixels = view.pixels();
@@ -101,19 +100,16 @@ class MaskRenderer {
     uint32_t face, first, count;
     Rgb color;
   };
-  struct Edge {
-    int64_t a, b, ox, oy, bias;
-  };
   struct Setup {
     int x0 = 0, y0 = 0, x1 = -1, y1 = -1;  // inclusive pixel box inside the screen; empty: x1 < x0
     uint32_t first_edge = 0, edge_count = 0;
   };
 
   struct Scratch {
-    std::vector<Vec3> poly, out;
+    std::vector<Vec3> polygon, clipped;
     std::vector<int64_t> px, py;
   };
-  void set_up(const Pending& p, Setup& s, Edge* edges, Scratch& scratch) const;
+  void set_up(const Pending& p, Setup& s, EdgeFunction* edges, Scratch& scratch) const;
   void raster_tile(int tile, BspFrameCounters& c, std::vector<int64_t>& e0);
   bool tile_is_full(int tile) const {
     const int tx = tile % tiles_x_, ty = tile / tiles_x_;
@@ -125,110 +121,62 @@ class MaskRenderer {
   const BspRenderOptions& options_;
   const int n_, words_;
   tbb::task_arena arena_;
-  glm::dmat3 to_clip_{1.0};
+  ClipTransform clip_;
   int tiles_x_ = 0, tiles_y_ = 0;
   uint64_t full_words_[4] = {0, 0, 0, 0};
   bool screen_full_ = false;
 
+  // The batch, in traversal order (flush() empties it).
   std::vector<Pending> faces_;
-  std::vector<Vec3> vertices_;
-  std::vector<Setup> setups_;
-  std::vector<Edge> edges_;
-  std::vector<std::vector<uint32_t>> bins_;
+  std::vector<Vec3> vertices_;               // the faces' world-space vertices
+  std::vector<Setup> setups_;                // per face
+  std::vector<EdgeFunction> edges_;          // a setup's are [first_edge, first_edge + edge_count)
+  std::vector<std::vector<uint32_t>> bins_;  // per tile: the faces touching it, in order
 
-  std::vector<uint64_t> mask_;
-  std::vector<Rgb> accum_;
-  std::vector<uint16_t> best_;
+  // The frame, per pixel (tile_full_: per tile).
+  std::vector<uint64_t> mask_;       // words_ words of N x N coverage bits
+  std::vector<Rgb> accum_;           // each face's colour times its share of the sub-samples
+  std::vector<uint16_t> best_;       // the most sub-samples one face added: that face is ids_'
   std::vector<uint32_t> ids_;
-  std::vector<uint8_t> full_;
-  std::vector<uint32_t> tile_full_;
-  std::vector<Rgb> first_color_;
-  std::vector<uint8_t> mixed_;
+  std::vector<uint8_t> full_;        // 1 once the mask is full: later faces skip the pixel
+  std::vector<uint32_t> tile_full_;  // full pixels of the tile
+  std::vector<Rgb> first_color_;     // edge_flags: the first face's colour
+  std::vector<uint8_t> mixed_;       // edge_flags: 1 where colours mix
 };
 
-void MaskRenderer::set_up(const Pending& p, Setup& s, Edge* edges, Scratch& scratch) const {
+// Clip (as the Rasterizer clips), snap to 1/256 pixel, the box of pixels the face's footprint
+// meets, edge functions. An empty box (x1 < x0) marks a face with nothing to draw.
+void MaskRenderer::set_up(const Pending& p, Setup& s, EdgeFunction* edges, Scratch& scratch) const {
   s = Setup{};
-  std::vector<Vec3>& poly = scratch.poly;
-  std::vector<Vec3>& out = scratch.out;
-  poly.clear();
+  const int capacity = int(p.count) + ClipPlanes::kCount;  // the edges' room (flush)
+  scratch.polygon.resize(size_t(capacity));
+  scratch.clipped.resize(size_t(capacity));
   double farthest = 0.0;
   for (uint32_t k = 0; k < p.count; ++k) {
-    poly.push_back(to_clip_ * (vertices_[p.first + k] - view_.eye));
-    farthest = std::max(farthest, std::abs(poly.back().z));
+    scratch.polygon[k] = clip_(vertices_[p.first + k]);
+    farthest = std::max(farthest, std::abs(scratch.polygon[k].z));
   }
-  const double near = view_.near > 0.0 ? view_.near : kAutoNearFraction * farthest;
-  const double width = view_.width, height = view_.height;
-  auto distance = [&](int plane, const Vec3& v) {
-    switch (plane) {
-      case 0: return v.z - near;
-      case 1: return v.x + v.z;
-      case 2: return width * v.z - v.x;
-      case 3: return v.y + v.z;
-      default: return height * v.z - v.y;
-    }
-  };
-  for (int plane = 0; plane < 5 && poly.size() >= 3; ++plane) {
-    bool any_out = false;
-    for (const Vec3& v : poly) any_out |= distance(plane, v) < 0.0;
-    if (!any_out) continue;
-    // Sutherland-Hodgman; crossings interpolated from the inside end, as the Rasterizer does.
-    out.clear();
-    for (size_t i = 0; i < poly.size(); ++i) {
-      const Vec3& a = poly[i];
-      const Vec3& b = poly[(i + 1) % poly.size()];
-      const double da = distance(plane, a), db = distance(plane, b);
-      if (da >= 0.0) out.push_back(a);
-      if ((da >= 0.0) != (db >= 0.0)) {
-        const Vec3& in = da >= 0.0 ? a : b;
-        const Vec3& outside = da >= 0.0 ? b : a;
-        const double d_in = da >= 0.0 ? da : db, d_out = da >= 0.0 ? db : da;
-        out.push_back(in + (d_in / (d_in - d_out)) * (outside - in));
-      }
-    }
-    std::swap(poly, out);
-  }
-  if (poly.size() < 3) return;
-  int64_t xmin = INT64_MAX, xmax = INT64_MIN, ymin = INT64_MAX, ymax = INT64_MIN;
-  std::vector<int64_t>& px = scratch.px;
-  std::vector<int64_t>& py = scratch.py;
-  px.resize(poly.size());
-  py.resize(poly.size());
-  for (size_t k = 0; k < poly.size(); ++k) {
-    if (!(poly[k].z > 0.0)) return;
-    const double x = std::clamp(poly[k].x / poly[k].z, -1.0, width), y = std::clamp(poly[k].y / poly[k].z, -1.0, height);
-    px[k] = static_cast<int64_t>(std::nearbyint(std::ldexp(x, kSnapBits)));
-    py[k] = static_cast<int64_t>(std::nearbyint(std::ldexp(y, kSnapBits)));
-    xmin = std::min(xmin, px[k]);
-    xmax = std::max(xmax, px[k]);
-    ymin = std::min(ymin, py[k]);
-    ymax = std::max(ymax, py[k]);
+  const ClipPlanes planes = ClipPlanes::of(view_, 0.0, farthest);
+  const ClippedPolygon polygon =
+      clip_to_view(scratch.polygon.data(), scratch.clipped.data(), int(p.count), capacity, planes);
+  if (polygon.size < 3) return;
+  scratch.px.resize(size_t(polygon.size));
+  scratch.py.resize(size_t(polygon.size));
+  SnapBox box;
+  if (!snap_polygon(polygon.vertices, polygon.size, kSnapBits, planes, scratch.px.data(), scratch.py.data(), box)) {
+    return;
   }
   // Pixels whose footprint [x - 1/2, x + 1/2] meets the box.
-  s.x0 = int(std::max<int64_t>((xmin - kSnap / 2) >> kSnapBits, 0));
-  s.y0 = int(std::max<int64_t>((ymin - kSnap / 2) >> kSnapBits, 0));
-  s.x1 = int(std::min<int64_t>(((xmax + kSnap / 2) >> kSnapBits) + 1, view_.width - 1));
-  s.y1 = int(std::min<int64_t>(((ymax + kSnap / 2) >> kSnapBits) + 1, view_.height - 1));
-  Int128 area = 0;
-  for (size_t k = 0; k < poly.size(); ++k) {
-    const size_t m = (k + 1) % poly.size();
-    area += Int128(px[k]) * py[m] - Int128(px[m]) * py[k];
-  }
-  if (area == 0 || s.x0 > s.x1 || s.y0 > s.y1) {
+  s.x0 = int(std::max<int64_t>((box.xmin - kSnap / 2) >> kSnapBits, 0));
+  s.y0 = int(std::max<int64_t>((box.ymin - kSnap / 2) >> kSnapBits, 0));
+  s.x1 = int(std::min<int64_t>(((box.xmax + kSnap / 2) >> kSnapBits) + 1, view_.width - 1));
+  s.y1 = int(std::min<int64_t>(((box.ymax + kSnap / 2) >> kSnapBits) + 1, view_.height - 1));
+  if (s.x0 > s.x1 || s.y0 > s.y1) {
     s.x1 = s.x0 - 1;
     return;
   }
-  const int64_t orient = area > 0 ? 1 : -1;
-  for (size_t k = 0; k < poly.size(); ++k) {
-    const size_t m = (k + 1) % poly.size();
-    if (px[k] == px[m] && py[k] == py[m]) continue;
-    Edge& e = edges[s.edge_count++];
-    e.a = -(py[m] - py[k]) * orient;
-    e.b = (px[m] - px[k]) * orient;
-    e.ox = px[k];
-    e.oy = py[k];
-    // Top-left rule, as the Rasterizer's (y points down).
-    e.bias = (e.a > 0 || (e.a == 0 && e.b > 0)) ? 0 : -1;
-  }
+  s.edge_count = uint32_t(edge_functions(scratch.px.data(), scratch.py.data(), polygon.size, edges));
+  if (s.edge_count == 0) s.x1 = s.x0 - 1;
 }
 
 void MaskRenderer::flush() {
@@ -289,7 +237,7 @@ void MaskRenderer::raster_tile(int tile, BspFrameCounters& c, std::vector<int64_
     }
     const Setup& s = setups_[index];
     const Pending& face = faces_[index];
-    const Edge* edges = edges_.data() + s.first_edge;
+    const EdgeFunction* edges = edges_.data() + s.first_edge;
     const int ec = int(s.edge_count);
     e0.resize(size_t(ec));
     for (int y = std::max(s.y0, ty0); y <= std::min(s.y1, ty1); ++y) {
@@ -303,7 +251,7 @@ void MaskRenderer::raster_tile(int tile, BspFrameCounters& c, std::vector<int64_
         const int64_t sx = (int64_t(x) << kSnapBits) + first, sy = (int64_t(y) << kSnapBits) + first;
         bool reject = false, all_in = true;
         for (int k = 0; k < ec && !reject; ++k) {
-          const Edge& e = edges[k];
+          const EdgeFunction& e = edges[k];
           e0[size_t(k)] = e.a * (sx - e.ox) + e.b * (sy - e.oy) + e.bias;
           const int64_t lo = e0[size_t(k)] + std::min<int64_t>(0, e.a * span) + std::min<int64_t>(0, e.b * span);
           const int64_t hi = e0[size_t(k)] + std::max<int64_t>(0, e.a * span) + std::max<int64_t>(0, e.b * span);
@@ -465,17 +413,40 @@ BspFrame render_bsp(const BspTree& tree, const View& view, const BspRenderOption
         },
         &c.faces_culled_back);
     mask.finish(frame);
-    const BspFrameCounters& m = mask.counters;
-    c.pixel_visits = m.pixel_visits;
-    c.pixels_skipped_full = m.pixels_skipped_full;
-    c.faces_skipped_full = m.faces_skipped_full;
-    c.subsample_tests = m.subsample_tests;
-    c.pixels_full = m.pixels_full;
-    c.raster_ms = m.raster_ms;
+    add_counters(c, mask.counters);
+    c.raster_ms = mask.counters.raster_ms;
     c.traverse_ms = ms_since(traverse_start) - c.raster_ms;
   }
   frame.counters.objects_outside_region = outside;
   frame.counters.total_ms = ms_since(start);
+  return frame;
+}
+
+BspFrameRenderer::BspFrameRenderer(BspTree tree, const BspRenderOptions& options)
+    : tree_(std::move(tree)), options_(options) {}
+
+Result<Frame> BspFrameRenderer::render(const View& view) {
+  BspFrame bsp = render_bsp(tree_, view, options_);
+  const BspFrameCounters& c = bsp.counters;
+  const bool front_to_back = options_.order == BspOrder::FrontToBack;
+  Frame frame;
+  frame.colors = std::move(bsp.colors);
+  frame.ids = std::move(bsp.ids);
+  for (uint32_t& id : frame.ids) {
+    if (id != kNoPrim) id = tree_.faces()[id].source;
+  }
+  frame.ms = c.total_ms;
+  frame.stats = nlohmann::json::parse(tree_.stats().to_json());
+  frame.stats["method"] = "bsp";
+  frame.stats["order"] = front_to_back ? "front-to-back" : "back-to-front";
+  frame.stats["aa"] = front_to_back ? options_.aa : 0;
+  frame.stats["width"] = view.width;
+  frame.stats["height"] = view.height;
+  frame.stats["frame"] = {{"nodes_visited", c.nodes_visited},     {"faces_drawn", c.faces_drawn},
+                          {"faces_culled_back", c.faces_culled_back}, {"pixel_visits", c.pixel_visits},
+                          {"pixels_skipped_full", c.pixels_skipped_full}, {"pixels_full", c.pixels_full},
+                          {"traverse_ms", c.traverse_ms},           {"raster_ms", c.raster_ms},
+                          {"ms", c.total_ms}};
   return frame;
 }
 

@@ -11,11 +11,13 @@
 // Coverage in the mask renderer is exact: vertices snap to 1/256 pixel (every sample position
 // of N <= 16 is on that lattice), edge functions are 64-bit integers (|values| < 2^60 for screens
 // up to 2^20), and the top-left rule gives a sample on an edge shared by two faces to exactly
-// one of them. Clipping (near plane, a one-pixel band around the screen) is the Rasterizer's.
+// one of them. Clipping (near plane, a one-pixel band around the screen) is the Rasterizer's
+// (src/raster/clip.h).
 //
 // Thread safety: one thread drives a frame; the tree is shared read-only; workers are internal.
 #pragma once
 
+#include "src/engine/frame_renderer.h"
 #include "src/raster/bsp.h"
 #include "src/raster/raster.h"
 #include "src/core/sample_buffer.h"
@@ -79,5 +81,21 @@ BspFrameCounters submit_bsp(const BspTree& tree, Rasterizer& rasterizer, BspOrde
 
 // The flat colour of a face (world-space vertices) seen from `eye`.
 Rgb bsp_face_color(const BspTree& tree, uint32_t face, std::span<const Vec3> vertices, const Vec3& eye);
+
+// A BSP tree as a FrameRenderer, rendered with render_bsp. stats: the tree's
+// BspStats::to_json() plus method ("bsp"), order, aa (0 for back to front), width, height and
+// frame (this frame's counters: nodes_visited, faces_drawn, faces_culled_back, pixel_visits,
+// pixels_skipped_full, pixels_full, traverse_ms, raster_ms, ms). REQUIRES: options.aa in
+// {1, 2, 4, 8, 16}; options.colors (a Frame has an image).
+class BspFrameRenderer final : public FrameRenderer {
+ public:
+  BspFrameRenderer(BspTree tree, const BspRenderOptions& options);
+  const BspTree& tree() const { return tree_; }
+  Result<Frame> render(const View& view) override;
+
+ private:
+  BspTree tree_;
+  BspRenderOptions options_;
+};
 
 }  // namespace frontier

@@ -1,3 +1,6 @@
+// The tessellated baseline (see the header): tessellation once, per-vertex lighting and
+// rasterization per frame, perspective-correct interpolation of the winning triangle's colours,
+// and TessellatedFrameRenderer.
 #include "src/raster/gouraud.h"
 
 #include <nlohmann/json.hpp>
@@ -144,6 +147,23 @@ std::vector<uint32_t> TessellatedRenderer::prim_ids() {
     if (id != kNoPrim) id = triangle_prim_[id];
   }
   return ids;
+}
+
+void TessellatedRenderer::add_stats(nlohmann::json& stats, const char* method, const View& view) const {
+  add_issue_stats(stats, method, options_.order, view, scene_.size());
+  stats["tessellation"] = options_.segments;
+  stats["triangles"] = triangles();
+}
+
+Result<Frame> TessellatedFrameRenderer::render(const View& view) {
+  const TessellatedCounters counters = tessellated_.render(view);
+  Frame frame;
+  frame.colors = tessellated_.rasterizer().colors();
+  frame.ids = source_ids(scene_, tessellated_.prim_ids());
+  frame.ms = counters.ms;
+  frame.stats = counters.to_json();
+  tessellated_.add_stats(frame.stats, "tessellated", view);
+  return frame;
 }
 
 }  // namespace frontier

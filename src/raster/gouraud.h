@@ -5,6 +5,7 @@
 // Mesa columns: triangles issued, vertices lit, pixels covered.
 #pragma once
 
+#include "src/engine/frame_renderer.h"
 #include "src/raster/imr.h"
 #include "src/engine/kdtree.h"
 #include "src/raster/raster.h"
@@ -52,6 +53,8 @@ class TessellatedRenderer {
   size_t triangles() const { return triangles_.size(); }
   // Scene primitive i's triangles: [first, last) in tessellated_scene() and in ids().
   std::pair<uint32_t, uint32_t> triangle_range(uint32_t i) const { return {first_[i], first_[i + 1]}; }
+  // The scene primitive triangle k of the tessellation belongs to.
+  uint32_t triangle_prim(uint32_t k) const { return triangle_prim_[k]; }
   // The triangle order a frame issues for `view` (the options' object order, each object's
   // triangles together): what another renderer is given to draw the same stream.
   std::vector<uint32_t> triangle_order(const View& view) const;
@@ -64,6 +67,9 @@ class TessellatedRenderer {
   // A triangles-only scene of the same tessellation (for other renderers: Mesa), each
   // triangle keeping its primitive's source and material.
   Scene tessellated_scene() const;
+  // What the stats of a method drawing this tessellation name besides its counters:
+  // add_issue_stats' keys, tessellation (segments around a circle) and triangles.
+  void add_stats(nlohmann::json& stats, const char* method, const View& view) const;
 
  private:
   const Scene& scene_;
@@ -76,6 +82,19 @@ class TessellatedRenderer {
   std::vector<uint32_t> first_;          // per primitive: its first triangle (size + 1 entries)
   std::vector<std::array<Rgb, 3>> vertex_colors_;
   std::unique_ptr<Rasterizer> raster_;
+};
+
+// The tessellated baseline as a FrameRenderer. stats: TessellatedCounters::to_json() plus
+// TessellatedRenderer::add_stats' keys (method "tessellated"). `scene` must outlive it.
+class TessellatedFrameRenderer final : public FrameRenderer {
+ public:
+  TessellatedFrameRenderer(const Scene& scene, const TessellatedOptions& options)
+      : scene_(scene), tessellated_(scene, options) {}
+  Result<Frame> render(const View& view) override;
+
+ private:
+  const Scene& scene_;
+  TessellatedRenderer tessellated_;
 };
 
 }  // namespace frontier

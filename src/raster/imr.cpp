@@ -1,3 +1,6 @@
+// Immediate-mode ray casting (see the header): implicit surfaces and their ray test, bounding
+// polyhedra and near caps, object issue orders, ImrRenderer's frame (issue, rasterize with
+// ray-cast bound fragments, deferred lighting) and ImrFrameRenderer.
 #include "src/raster/imr.h"
 
 #include <nlohmann/json.hpp>
@@ -712,8 +715,44 @@ ImrCounters ImrRenderer::render(const View& view) {
   counters.back_samples_culled = rc.back_samples_culled;
   counters.immediate_lighting = rc.depth_passes;  // every fragment written, lit as it is written
 
-  // Deferred lighting of the visible samples, with the surfaces' analytic normals.
   t = std::chrono::steady_clock::now();
+  shade(view, counters);
+  counters.shade_ms = ms_since(t);
+  counters.ms = ms_since(start);
+  return counters;
+}
+
+// One visible sample's colour: the shader's, except on surfaces the scene format cannot describe
+// (caps on a clip plane take the plane's normal; textured surfaces a checkerboard).
+Rgb ImrRenderer::shade_sample(uint32_t prim, const Ray& ray, double depth, Counters& shading,
+                              uint64_t& fetches) const {
+  const ImplicitSurface* s = surface_of_prim(prim);
+  if (s == nullptr || (!s->capped && !s->textured)) return shader_->shade(prim, ray, depth, options_.shadows, shading);
+  const Vec3 p = ray.at(depth);
+  const Vec3 q = p - s->origin;
+  Vec3 normal = unit_or(s->gradient(q), -ray.dir);
+  if (s->capped) {
+    // On a clip plane (within rounding): the cap's normal.
+    for (int j = 0; j < s->clip_count; ++j) {
+      const Vec4& plane = s->clip[static_cast<size_t>(j)];
+      if (std::abs(glm::dot(Vec3(plane), q) + plane.w) <= 1e-9 * s->scale() &&
+          std::abs(s->value(q)) > 1e-9 * glm::length(s->gradient(q)) * s->scale()) {
+        normal = Vec3(plane);
+      }
+    }
+  }
+  Rgb c = shader_->shade_surface(scene_.prims[prim].material, normal, ray, depth, shading);
+  if (s->textured) {
+    const auto uv = texture_coordinates(*s, p);
+    ++fetches;
+    const bool odd = (static_cast<int64_t>(std::floor(uv[0])) + static_cast<int64_t>(std::floor(uv[1]))) & 1;
+    if (odd) c = Rgb{c.r * 0.5f, c.g * 0.5f, c.b * 0.5f};
+  }
+  return c;
+}
+
+// Deferred lighting of the visible samples, with the surfaces' analytic normals.
+void ImrRenderer::shade(const View& view, ImrCounters& counters) {
   const std::vector<uint32_t>& ids = raster_->ids();
   const Rasterizer& raster = *raster_;  // flushed by ids()
   std::vector<Rgb> colors(view.pixels(), shader_->background());
@@ -722,44 +761,9 @@ ImrCounters ImrRenderer::render(const View& view) {
     uint64_t lit = 0, fetches = 0;
   };
   tbb::enumerable_thread_specific<Local> local;
-  arena_.execute([&] {
-    tbb::parallel_for(0, view.height, [&](int y) {
-      Local& l = local.local();
-      for (int x = 0; x < view.width; ++x) {
-        const size_t i = static_cast<size_t>(y) * static_cast<size_t>(view.width) + static_cast<size_t>(x);
-        const uint32_t id = ids[i];
-        if (id == kNoPrim) continue;
-        const Ray ray = view.ray(x, y);
-        const double depth = raster.depth_at(x, y);
-        const ImplicitSurface* s = surface_of_prim(id);
-        ++l.lit;
-        if (s == nullptr || (!s->capped && !s->textured)) {
-          colors[i] = shader_->shade(id, ray, depth, options_.shadows, l.shading);
-          continue;
-        }
-        const Vec3 p = ray.at(depth);
-        const Vec3 q = p - s->origin;
-        Vec3 normal = unit_or(s->gradient(q), -ray.dir);
-        if (s->capped) {
-          // On a clip plane (within rounding): the cap's normal.
-          for (int j = 0; j < s->clip_count; ++j) {
-            const Vec4& plane = s->clip[static_cast<size_t>(j)];
-            if (std::abs(glm::dot(Vec3(plane), q) + plane.w) <= 1e-9 * s->scale() &&
-                std::abs(s->value(q)) > 1e-9 * glm::length(s->gradient(q)) * s->scale()) {
-              normal = Vec3(plane);
-            }
-          }
-        }
-        Rgb c = shader_->shade_surface(scene_.prims[id].material, normal, ray, depth, l.shading);
-        if (s->textured) {
-          const auto uv = texture_coordinates(*s, p);
-          ++l.fetches;
-          const bool odd = (static_cast<int64_t>(std::floor(uv[0])) + static_cast<int64_t>(std::floor(uv[1]))) & 1;
-          if (odd) c = Rgb{c.r * 0.5f, c.g * 0.5f, c.b * 0.5f};
-        }
-        colors[i] = c;
-      }
-    });
+  for_each_covered_pixel(arena_, view, ids, local, [&](Local& l, int x, int y, size_t i) {
+    ++l.lit;
+    colors[i] = shade_sample(ids[i], view.ray(x, y), raster.depth_at(x, y), l.shading, l.fetches);
   });
   for (const Local& l : local) {
     counters.lit_pixels += l.lit;
@@ -767,9 +771,27 @@ ImrCounters ImrRenderer::render(const View& view) {
     counters.shading_ops += l.shading.shading_ops;
   }
   raster_->set_colors(std::move(colors));
-  counters.shade_ms = ms_since(t);
-  counters.ms = ms_since(start);
-  return counters;
+}
+
+void add_issue_stats(nlohmann::json& stats, const char* method, IssueOrder order, const View& view,
+                     size_t primitives) {
+  stats["method"] = method;
+  stats["order"] = issue_order_name(order);
+  stats["width"] = view.width;
+  stats["height"] = view.height;
+  stats["primitives"] = primitives;
+}
+
+Result<Frame> ImrFrameRenderer::render(const View& view) {
+  const ImrCounters counters = imr_.render(view);
+  Frame frame;
+  frame.colors = imr_.rasterizer().colors();
+  frame.ids = source_ids(scene_, imr_.rasterizer().ids());
+  frame.ms = counters.ms;
+  frame.stats = counters.to_json();
+  frame.stats["bound_triangles"] = imr_.bound_triangles();
+  add_issue_stats(frame.stats, "imr", imr_.options().order, view, scene_.size());
+  return frame;
 }
 
 }  // namespace frontier

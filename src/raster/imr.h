@@ -21,6 +21,7 @@
 #pragma once
 
 #include "src/core/counters.h"
+#include "src/engine/frame_renderer.h"
 #include "src/engine/kdtree.h"
 #include "src/core/primitives.h"
 #include "src/raster/raster.h"
@@ -124,6 +125,11 @@ const char* issue_order_name(IssueOrder order);
 std::vector<uint32_t> issue_order(const Scene& scene, const KdTree& tree, const Vec3& eye, IssueOrder order,
                                   uint64_t seed, uint64_t* nodes_visited = nullptr);
 
+// What the stats of a method issuing objects in `order` name besides its counters: method,
+// order, width, height and primitives (the scene's).
+void add_issue_stats(nlohmann::json& stats, const char* method, IssueOrder order, const View& view,
+                     size_t primitives);
+
 struct ImrOptions {
   // Bound meridians / sides (the paper's "tessellation value"). 6 (with 3 stacks): 24
   // triangles per sphere, 20 per cone, silhouettes ~90% tight (bench_imr, Tables 9–10).
@@ -185,6 +191,8 @@ class ImrRenderer {
  private:
   class Program;
   void issue(uint32_t prim, const View& view, double near, ImrCounters& counters);
+  void shade(const View& view, ImrCounters& counters);
+  Rgb shade_sample(uint32_t prim, const Ray& ray, double depth, Counters& shading, uint64_t& fetches) const;
 
   const Scene& scene_;
   ImrOptions options_;
@@ -198,6 +206,18 @@ class ImrRenderer {
   std::unique_ptr<Rasterizer> raster_;
   std::unique_ptr<Program> program_;
   tbb::task_arena arena_;  // options_.threads workers, for the shading pass
+};
+
+// Immediate-mode ray casting as a FrameRenderer. stats: ImrCounters::to_json() plus
+// bound_triangles and add_issue_stats' keys (method "imr"). `scene` must outlive it.
+class ImrFrameRenderer final : public FrameRenderer {
+ public:
+  ImrFrameRenderer(const Scene& scene, const ImrOptions& options) : scene_(scene), imr_(scene, options) {}
+  Result<Frame> render(const View& view) override;
+
+ private:
+  const Scene& scene_;
+  ImrRenderer imr_;
 };
 
 }  // namespace frontier

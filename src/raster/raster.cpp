@@ -7,7 +7,8 @@
 // sign of (A, B) is the same as sampling at the pixel centre moved right by an infinitesimal e
 // and down by e^2, a point on no edge, which lies in exactly one triangle of a mesh.
 // Shared edges stay shared through clipping because an intersection is always interpolated
-// from the edge's inside vertex towards its outside one, whichever triangle clips it.
+// from the edge's inside vertex towards its outside one, whichever triangle clips it
+// (src/raster/clip.h, which the BSP coverage-mask renderer shares).
 #include "src/raster/raster.h"
 
 #include "src/engine/shading.h"
@@ -28,16 +29,6 @@ __extension__ typedef __int128 Int128;
 // A triangle clipped by five planes has at most 8 vertices; rounding can in principle add a
 // few (a vertex within rounding of a plane crossing it twice), so there is room for 16.
 constexpr int kMaxVertices = 16;
-constexpr int kClipPlanes = 5;           // near, x >= -1, x <= width, y >= -1, y <= height
-constexpr double kAutoNearFraction = 1e-9;
-
-// Clip-space vertex: (x w, y w, w), pixel centres at integer x, y.
-using ClipVertex = Vec3;
-
-struct Polygon {
-  ClipVertex v[kMaxVertices];
-  int size = 0;
-};
 
 // n as a double, within a few units in the last place (signed conversions only: cheaper than
 // the library's and than unsigned ones).
@@ -74,28 +65,6 @@ void clip_span(const EdgeWalk& e, int64_t& lo, int64_t& hi) {
   }
 }
 
-// Sutherland-Hodgman against one plane given as signed distances (inside: >= 0). The
-// intersection on an edge is interpolated from its inside end, so the two triangles sharing an
-// edge compute bit-identical points.
-template <class Distance>
-void clip(Polygon& poly, Distance distance) {
-  Polygon out;
-  for (int i = 0; i < poly.size; ++i) {
-    const ClipVertex& a = poly.v[i];
-    const ClipVertex& b = poly.v[(i + 1) % poly.size];
-    const double da = distance(a), db = distance(b);
-    const bool a_in = da >= 0.0, b_in = db >= 0.0;
-    if (a_in && out.size < kMaxVertices) out.v[out.size++] = a;
-    if (a_in != b_in && out.size < kMaxVertices) {
-      const ClipVertex& in = a_in ? a : b;
-      const ClipVertex& outside = a_in ? b : a;
-      const double d_in = a_in ? da : db, d_out = a_in ? db : da;
-      out.v[out.size++] = in + (d_in / (d_in - d_out)) * (outside - in);
-    }
-  }
-  poly = out;
-}
-
 RasterCounters difference(const RasterCounters& after, const RasterCounters& before) {
   RasterCounters d;
   d.submitted = after.submitted - before.submitted;
@@ -119,11 +88,7 @@ double ms_since(std::chrono::steady_clock::time_point start) {
 }  // namespace
 
 struct Rasterizer::Setup {
-  // An edge function E(X, Y) = a (X - ox) + b (Y - oy) + bias in snapped units (X = x << S),
-  // oriented so that the inside is E >= 0; bias is -1 on edges that are neither top nor left.
-  struct Edge {
-    int64_t a, b, ox, oy, bias;
-  };
+  using Edge = EdgeFunction;  // in snapped units (X = x << kSubpixelBits)
   uint32_t id;
   bool bound;                  // a surface bound: fragments cast a ray (SurfaceProgram)
   int edge_count;              // 0: nothing to rasterize
@@ -155,9 +120,7 @@ Rasterizer::Rasterizer(const View& view, const RasterOptions& options)
     : view_(view),
       options_(options),
       arena_(options.threads > 0 ? options.threads : tbb::info::default_concurrency()) {
-  // view.direction(x, y) = M (x, y, 1) with M's columns step_x, step_y, base; so a point at
-  // offset d = lambda * direction(x, y) from the eye has M^-1 d = lambda (x, y, 1).
-  to_clip_ = glm::inverse(glm::dmat3(view.step_x, view.step_y, view.base));
+  clip_ = ClipTransform::of(view);
   options_.tile_size = std::max(options_.tile_size, 8);
   tiles_x_ = (view.width + options_.tile_size - 1) / options_.tile_size;
   tiles_y_ = (view.height + options_.tile_size - 1) / options_.tile_size;
@@ -206,117 +169,72 @@ Rasterizer::Setup Rasterizer::set_up(const Triangle& tri, uint32_t id, RasterCou
   s.id = id;
   s.edge_count = 0;
   ++counters.submitted;
+  const Vec3 from_eye[3] = {tri.v0 - view_.eye, tri.v1 - view_.eye, tri.v2 - view_.eye};
+  if (!set_depth_plane(tri, from_eye, s, counters)) return s;
 
-  // Facing and the depth plane, from world space relative to the eye. det is the signed volume
-  // of (eye, v0, v1, v2): negative when the geometric normal faces the eye; zero edge-on (the
-  // ray caster never reports a hit on a triangle seen edge-on either).
-  const Vec3 d[3] = {tri.v0 - view_.eye, tri.v1 - view_.eye, tri.v2 - view_.eye};
+  Vec3 polygon[kMaxVertices], scratch[kMaxVertices];
+  double farthest = 0.0;
+  for (int k = 0; k < 3; ++k) {
+    polygon[k] = clip_.to_clip * from_eye[k];
+    farthest = std::max(farthest, std::abs(polygon[k].z));
+  }
+  const ClipPlanes planes = ClipPlanes::of(view_, options_.near_floor, farthest);
+  const ClippedPolygon clipped = clip_to_view(polygon, scratch, 3, kMaxVertices, planes);
+  if (clipped.size < 3) {
+    ++counters.culled_outside;
+    return s;
+  }
+  if (clipped.crossed != 0) {
+    ++counters.clipped;
+    if (clipped.crossed & 1u) ++counters.near_clipped;
+  }
+  set_edges(clipped, planes, s, counters);
+  return s;
+}
+
+// Facing and the depth plane, from world space relative to the eye. det is the signed volume of
+// (eye, v0, v1, v2): negative when the geometric normal faces the eye; zero edge-on (the ray
+// caster never reports a hit on a triangle seen edge-on either). Returns false when culled.
+bool Rasterizer::set_depth_plane(const Triangle& tri, const Vec3 (&from_eye)[3], Setup& s,
+                                 RasterCounters& counters) const {
   const Vec3 normal = glm::cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
-  const double det = glm::dot(d[0], normal);
+  const double det = glm::dot(from_eye[0], normal);
   if (!(det != 0.0) || !std::isfinite(det)) {
     ++counters.culled_empty;
-    return s;
+    return false;
   }
   if (options_.cull_back_faces && det > 0.0) {
     ++counters.culled_back;
-    return s;
+    return false;
   }
   // A point p = eye + lambda * direction(x, y) of the plane has lambda = det / (n . direction).
   s.inv_c = glm::dot(normal, view_.base) / det;
   s.inv_x = glm::dot(normal, view_.step_x) / det;
   s.inv_y = glm::dot(normal, view_.step_y) / det;
+  return true;
+}
 
-  Polygon poly;
-  poly.size = 3;
-  double farthest = 0.0;
-  for (int k = 0; k < 3; ++k) {
-    poly.v[k] = to_clip_ * d[k];
-    farthest = std::max(farthest, std::abs(poly.v[k].z));
-  }
-  const double near = view_.near > 0.0 ? view_.near
-                      : options_.near_floor > 0.0 ? options_.near_floor
-                                                  : kAutoNearFraction * farthest;
-  const double width = view_.width, height = view_.height;
-  // Signed distances to the clip planes; the side planes sit one pixel outside the outermost
-  // pixel centres, so clipping never moves an edge across a centre.
-  auto distance = [&](int plane, const ClipVertex& v) {
-    switch (plane) {
-      case 0: return v.z - near;
-      case 1: return v.x + v.z;
-      case 2: return width * v.z - v.x;
-      case 3: return v.y + v.z;
-      default: return height * v.z - v.y;
-    }
-  };
-  unsigned outside_all = (1u << kClipPlanes) - 1, outside_any = 0;
-  for (int k = 0; k < 3; ++k) {
-    unsigned code = 0;
-    for (int p = 0; p < kClipPlanes; ++p) code |= distance(p, poly.v[k]) < 0.0 ? 1u << p : 0u;
-    outside_all &= code;
-    outside_any |= code;
-  }
-  if (outside_all != 0) {
-    ++counters.culled_outside;
-    return s;
-  }
-  if (outside_any != 0) {
-    for (int p = 0; p < kClipPlanes && poly.size >= 3; ++p) {
-      if (outside_any & (1u << p)) clip(poly, [&](const ClipVertex& v) { return distance(p, v); });
-    }
-    if (poly.size < 3) {
-      ++counters.culled_outside;
-      return s;
-    }
-    ++counters.clipped;
-    if (outside_any & 1u) ++counters.near_clipped;
-  }
-
-  // Project and snap. Clipped vertices lie in [-1, width] x [-1, height] up to rounding.
+// Snapping, the box of pixel centres covered and the edge functions of a clipped triangle.
+void Rasterizer::set_edges(const ClippedPolygon& polygon, const ClipPlanes& planes, Setup& s,
+                           RasterCounters& counters) const {
   int64_t px[kMaxVertices], py[kMaxVertices];
-  int64_t xmin = INT64_MAX, xmax = INT64_MIN, ymin = INT64_MAX, ymax = INT64_MIN;
-  for (int k = 0; k < poly.size; ++k) {
-    const ClipVertex& v = poly.v[k];
-    if (!(v.z > 0.0)) {
-      ++counters.culled_outside;
-      return s;
-    }
-    const double x = std::clamp(v.x / v.z, -1.0, width), y = std::clamp(v.y / v.z, -1.0, height);
-    px[k] = static_cast<int64_t>(std::nearbyint(std::ldexp(x, kSubpixelBits)));
-    py[k] = static_cast<int64_t>(std::nearbyint(std::ldexp(y, kSubpixelBits)));
-    xmin = std::min(xmin, px[k]);
-    xmax = std::max(xmax, px[k]);
-    ymin = std::min(ymin, py[k]);
-    ymax = std::max(ymax, py[k]);
+  SnapBox box;
+  if (!snap_polygon(polygon.vertices, polygon.size, kSubpixelBits, planes, px, py, box)) {
+    ++counters.culled_outside;
+    return;
   }
   // Pixel centres inside the box: ceil of the minimum, floor of the maximum.
   constexpr int64_t kOne = int64_t{1} << kSubpixelBits;
-  s.x0 = static_cast<int>(std::max<int64_t>((xmin + kOne - 1) >> kSubpixelBits, 0));
-  s.y0 = static_cast<int>(std::max<int64_t>((ymin + kOne - 1) >> kSubpixelBits, 0));
-  s.x1 = static_cast<int>(std::min<int64_t>(xmax >> kSubpixelBits, view_.width - 1));
-  s.y1 = static_cast<int>(std::min<int64_t>(ymax >> kSubpixelBits, view_.height - 1));
-  Int128 area = 0;
-  for (int k = 0; k < poly.size; ++k) {
-    const int n = (k + 1) % poly.size;
-    area += Int128(px[k]) * py[n] - Int128(px[n]) * py[k];
-  }
-  if (s.x0 > s.x1 || s.y0 > s.y1 || area == 0) {
+  s.x0 = static_cast<int>(std::max<int64_t>((box.xmin + kOne - 1) >> kSubpixelBits, 0));
+  s.y0 = static_cast<int>(std::max<int64_t>((box.ymin + kOne - 1) >> kSubpixelBits, 0));
+  s.x1 = static_cast<int>(std::min<int64_t>(box.xmax >> kSubpixelBits, view_.width - 1));
+  s.y1 = static_cast<int>(std::min<int64_t>(box.ymax >> kSubpixelBits, view_.height - 1));
+  if (s.x0 > s.x1 || s.y0 > s.y1) {
     ++counters.culled_empty;
-    return s;
+    return;
   }
-  const int64_t orient = area > 0 ? 1 : -1;
-  for (int k = 0; k < poly.size; ++k) {
-    const int n = (k + 1) % poly.size;
-    if (px[k] == px[n] && py[k] == py[n]) continue;
-    Setup::Edge& e = s.edges[s.edge_count++];
-    e.a = -(py[n] - py[k]) * orient;
-    e.b = (px[n] - px[k]) * orient;
-    e.ox = px[k];
-    e.oy = py[k];
-    // Top-left rule (y points down): a centre on the edge is inside when the inside lies to
-    // its right (a left edge) or, for a horizontal edge, below it (a top edge).
-    e.bias = (e.a > 0 || (e.a == 0 && e.b > 0)) ? 0 : -1;
-  }
-  return s;
+  s.edge_count = edge_functions(px, py, polygon.size, s.edges);
+  if (s.edge_count == 0) ++counters.culled_empty;
 }
 
 void Rasterizer::raster_tile(int tile, const Setup* setups, RasterCounters& counters) {
@@ -485,15 +403,8 @@ Counters Rasterizer::shade(const Shader& shader, bool shadows) {
   flush();
   colors_.assign(view_.pixels(), shader.background());
   tbb::enumerable_thread_specific<Counters> local;
-  arena_.execute([&] {
-    tbb::parallel_for(0, view_.height, [&](int y) {
-      Counters& c = local.local();
-      for (int x = 0; x < view_.width; ++x) {
-        const size_t i = static_cast<size_t>(y) * static_cast<size_t>(view_.width) + static_cast<size_t>(x);
-        if (ids_[i] == kNoPrim) continue;
-        colors_[i] = shader.shade(ids_[i], view_.ray(x, y), depth_at(x, y), shadows, c);
-      }
-    });
+  for_each_covered_pixel(arena_, view_, ids_, local, [&](Counters& c, int x, int y, size_t i) {
+    colors_[i] = shader.shade(ids_[i], view_.ray(x, y), depth_at(x, y), shadows, c);
   });
   Counters total;
   for (const Counters& c : local) total += c;

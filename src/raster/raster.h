@@ -23,8 +23,9 @@
 // Pipeline: submit() queues world-space triangles; flush() (run by submit() every
 // kBatchTriangles and by every framebuffer accessor) sets them up in parallel (back-face and
 // outside culling, Sutherland-Hodgman clipping of the homogeneous polygon against the near
-// plane and a one-pixel band around the screen, snapping), bins them into square tiles and
-// rasterizes tiles in parallel. Memory is bounded by the batch size, not the triangle count.
+// plane and a one-pixel band around the screen, snapping: src/raster/clip.h), bins them into
+// square tiles and rasterizes tiles in parallel. Memory is bounded by the batch size, not the
+// triangle count.
 //
 // Thread safety: one thread drives a Rasterizer; it uses up to `threads` workers internally.
 #pragma once
@@ -34,8 +35,10 @@
 #include "src/core/sample_buffer.h"
 #include "src/core/scene.h"
 #include "src/core/view.h"
+#include "src/raster/clip.h"
 
-#include <glm/mat3x3.hpp>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
 #include <algorithm>
@@ -81,15 +84,6 @@ struct RasterCounters {
   double raster_ms = 0.0;         // tile rasterization
 
   RasterCounters& operator+=(const RasterCounters& o);
-};
-
-// World space -> the rasterizer's clip space: (x w, y w, w), w the distance along the view axis
-// (so 1/w is what the depth test compares), pixel centres at integer x = X / w, y = Y / w.
-struct ClipTransform {
-  Vec3 eye{0.0};
-  glm::dmat3 to_clip{1.0};  // inverse of the View's pixel-direction map (step_x, step_y, base)
-
-  Vec3 operator()(const Vec3& world) const { return to_clip * (world - eye); }
 };
 
 // What a bound fragment's ray found on its surface.
@@ -143,7 +137,7 @@ class Rasterizer {
 
   // The projection the depth test uses (see ClipTransform). Consumers of inverse_depth() (a
   // depth pyramid) project with it to compare their own geometry with the buffer.
-  ClipTransform clip_transform() const { return {view_.eye, to_clip_}; }
+  const ClipTransform& clip_transform() const { return clip_; }
   // The near plane triangles are clipped at: View::near, else RasterOptions::near_floor; 0 when
   // neither is set (then chosen per triangle, 1e-9 of its largest vertex w).
   double near_plane() const { return view_.near > 0.0 ? view_.near : std::max(options_.near_floor, 0.0); }
@@ -191,12 +185,14 @@ class Rasterizer {
 
  private:
   Setup set_up(const Triangle& triangle, uint32_t id, RasterCounters& counters) const;
+  bool set_depth_plane(const Triangle& triangle, const Vec3 (&from_eye)[3], Setup& s, RasterCounters& counters) const;
+  void set_edges(const ClippedPolygon& polygon, const ClipPlanes& planes, Setup& s, RasterCounters& counters) const;
   void raster_tile(int tile, const Setup* setups, RasterCounters& counters);
 
   View view_;
   RasterOptions options_;
   tbb::task_arena arena_;
-  glm::dmat3 to_clip_{1.0};  // world offset from the eye -> (x w, y w, w), pixel centres at integers
+  ClipTransform clip_;  // world -> (x w, y w, w), pixel centres at integers
   int tiles_x_ = 0, tiles_y_ = 0;
 
   std::vector<Triangle> pending_;
@@ -213,6 +209,23 @@ class Rasterizer {
   uint64_t generation_ = 0;
   std::vector<uint64_t> tile_generation_;  // per tile: the generation that last changed it
 };
+
+// Calls body(local, x, y, i) for every pixel i = y * width + x of `view` whose id is not kNoPrim,
+// rows in parallel inside `arena`, `local` being the worker's locals.local(): the passes that
+// shade a rasterized frame (`ids` is its Rasterizer::ids()).
+template <class Local, class Body>
+void for_each_covered_pixel(tbb::task_arena& arena, const View& view, const std::vector<uint32_t>& ids,
+                            tbb::enumerable_thread_specific<Local>& locals, Body&& body) {
+  arena.execute([&] {
+    tbb::parallel_for(0, view.height, [&](int y) {
+      Local& local = locals.local();
+      for (int x = 0; x < view.width; ++x) {
+        const size_t i = static_cast<size_t>(y) * static_cast<size_t>(view.width) + static_cast<size_t>(x);
+        if (ids[i] != kNoPrim) body(local, x, y, i);
+      }
+    });
+  });
+}
 
 // Submits every triangle of `scene` with its primitive index as id (so ids()[i] indexes
 // scene.prims, as SampleBuffer::prim does), skipping and counting the other kinds, and flushes.

@@ -1,3 +1,6 @@
+// The rasterizing visibility classes (see the header): the k-d tree traversals with frustum,
+// z-pyramid and portal tests, paging through a CullSource, the per-frame table from submission
+// ids to input ids, flat shading of a finished frame, and CullingFrameRenderer.
 #include "src/raster/visibility.h"
 
 #include "src/raster/portals.h"
@@ -370,6 +373,25 @@ std::vector<Rgb> CullingRenderer::shade(const Shader& shader, Counters& counters
     }
   }
   return out;
+}
+
+CullingFrameRenderer::CullingFrameRenderer(const Scene& scene, const KdTree& tree, const CullOptions& options)
+    : source_(scene, tree), renderer_(options), shader_(scene, tree) {}
+
+Result<Frame> CullingFrameRenderer::render(const View& view) {
+  const CullCounters counters = renderer_.render(view, source_);
+  Frame frame;
+  Counters shading;  // flat shading after the frame: not the class's work, not reported
+  frame.colors = renderer_.shade(shader_, shading);
+  frame.ids = renderer_.ids();
+  frame.ms = counters.ms;
+  frame.stats = counters.to_json();
+  frame.stats["visibility"] = visibility_name(renderer_.options().visibility);
+  frame.stats["width"] = view.width;
+  frame.stats["height"] = view.height;
+  frame.stats["primitives"] = source_.scene().size();
+  frame.stats["cells"] = source_.tree().cells().size();
+  return frame;
 }
 
 }  // namespace frontier

@@ -33,6 +33,7 @@
 #pragma once
 
 #include "src/core/counters.h"
+#include "src/engine/frame_renderer.h"
 #include "src/engine/kdtree.h"
 #include "src/raster/raster.h"
 #include "src/core/scene.h"
@@ -171,6 +172,21 @@ class CullingRenderer {
   struct Planes;
   std::unique_ptr<Planes> planes_;
   CullCounters counters_;
+};
+
+// A rasterizing visibility class over an in-memory scene and tree, as a FrameRenderer: frames
+// are shaded flat (CullingRenderer::shade). stats: CullCounters::to_json() plus visibility,
+// width, height, primitives and cells. REQUIRES: options.visibility is exhaustive,
+// frustum-cull or occlusion-cull (portals needs a store's graph); `scene` and `tree` outlive it.
+class CullingFrameRenderer final : public FrameRenderer {
+ public:
+  CullingFrameRenderer(const Scene& scene, const KdTree& tree, const CullOptions& options);
+  Result<Frame> render(const View& view) override;
+
+ private:
+  MemoryCullSource source_;
+  CullingRenderer renderer_;
+  Shader shader_;
 };
 
 }  // namespace frontier
