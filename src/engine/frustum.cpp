@@ -18,10 +18,8 @@ constexpr uint8_t kLeft = 1, kRight = 2, kBottom = 4, kTop = 8;  // straddle bit
 constexpr uint32_t kMaxFillOccluders = 6;
 // Look-ahead (gather_ahead): at most this many tree nodes and references examined, at most
 // this many elements found, for frusta one or two levels above the leaf size. Leaf frusta
-// mostly find more than the limit (rings: 1938 of 2066 per frame), larger ones pay to search
-// and seldom succeed. Interleaved minima, 513²: tree 21.4 -> 18.3 ms, rings 31.0 -> 29.5,
-// shells 99.6 -> 97.2; leaf frusta included: rings 33.5; limit 8 or 16, budget 128 or 512:
-// no better.
+// mostly find more than the limit, larger ones pay to search and seldom succeed; a larger
+// limit, or a smaller or larger budget, did no better.
 constexpr size_t kAheadBudget = 256;
 constexpr size_t kAheadLimit = 4;
 constexpr int kAheadMaxSpan = 4;  // in leaf sizes
@@ -43,10 +41,9 @@ constexpr int kPresplitLevels = 4;
 // stopped early has them spread over the screen (interleaved order, §5.2).
 constexpr std::array<int, 4> kQuadrantOrder = {0, 3, 1, 2};
 // A budgeted frame runs each level in runs of this many jobs in Z order, the runs in
-// bit-reversed order (order_level). Interleaved A/B at 513² on frames given an unreachable
-// budget (so they ran to the end in this order), min ms, against the quadrant-interleaved
-// order before it: rings 27.4 -> 24.5, tree 14.7 -> 13.4, shells 89.3 -> 85.1 (whole levels
-// in Z order: 22.6, 12.4, 83.0; runs of 4: 25.8, 13.6, 87.2).
+// bit-reversed order (order_level). Whole levels in Z order run fastest and a budgeted frame
+// stopped early wants its samples spread; runs of 16 keep most of the speed (runs of 4 lose
+// more of it) and still spread.
 constexpr size_t kOrderRun = 16;
 
 // True when the four corner rays agree (same entry/exit face, same next cell).
@@ -96,7 +93,7 @@ struct FrustumCaster::Incidence {
   //   surface point lies within the largest radius R of that plane, and beyond `distance`, so
   //   d can hit it only if |d · axis| <= R / distance, kept as reach = -R / distance. A thin
   //   tube seen across is a thin strip of directions, where its bounding sphere's cone would
-  //   be a disc (rings: 5.0 -> 1.8 ray-primitive tests per ray).
+  //   be a disc, and far fewer of its rays are tested against it.
   // reach -2 (no test) passes all. Stored in float with margins far above the rounding (see
   // incidence()).
   float axis_x, axis_y, axis_z, reach;
@@ -493,8 +490,7 @@ void FrustumCaster::finish_level() {
 
 // The order a level's jobs run in: Z order of their corners, so that sibling and neighbouring
 // frusta run one after the other and find their cells and lists in cache (the order the
-// workers produced them scattered siblings: rings 27.0 -> 22.3 ms at 513², tree 14.8 -> 12.4,
-// shells 87.7 -> 83.4). A budgeted frame may stop within the level: there the Z order is cut
+// workers produced them in scattered siblings across their runs). A budgeted frame may stop within the level: there the Z order is cut
 // into runs of kOrderRun jobs taken in bit-reversed order, so that the runs done when it stops
 // are spread over the screen (§5.2's interleaving) and siblings still run together.
 void FrustumCaster::order_level(std::vector<Job>& level, bool budgeted) {
@@ -570,7 +566,7 @@ bool FrustumCaster::in_front(const Aabb& box) const {
 
 // A pixel strictly inside a job's rectangle belongs to that job alone (live jobs are never
 // nested and overlap only on the edges they share with siblings), so it is claimed without an
-// atomic read-modify-write, which cost a quarter of a frame on a wall of one element.
+// atomic read-modify-write, which costs much of a frame where one element fills the view.
 bool FrustumCaster::claim(const Job& job, int x, int y, size_t i) const {
   const bool interior = x > job.x0 && x < job.x1 && y > job.y0 && y < job.y1;
   return interior ? buffer_->claim_exclusive(i) : buffer_->claim(i);

@@ -207,10 +207,9 @@ class FrustumCaster {
   // image stopped early still has exact samples spread over the screen where reconstruction
   // interpolates from (frusta that finish whole blocks would leave it a few confirmed blocks).
   // Unbudgeted runs skip them: the frusta cover every pixel anyway. Anchors are walked one by
-  // one from the eye, which costs more per sample than frusta: on the 100 M building walk
-  // (640×480, 33 ms) a 16 px spacing cut the mean samples per frame from 175 k to 154 k, 32 px
-  // to 169 k, 64 px to 179 k; PSNR of a 1 %-sample image: 15.5 dB without, 20.0 (64 px),
-  // 22.3 (32 px), 23.3 (16 px) (bench_accuracy --knobs samples).
+  // one from the eye, which costs more per sample than frusta, so the spacing trades samples
+  // per budgeted frame against the quality of an image stopped early (bench_accuracy --knobs
+  // samples measures both): finer spacing costs samples, coarser loses quality quickly.
   static constexpr int kAnchorSpacing = 32;
   std::vector<uint32_t> anchors_;  // pixel indices, for an image of anchor_width_ × anchor_height_
   int anchor_width_ = 0, anchor_height_ = 0;
