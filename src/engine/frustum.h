@@ -153,6 +153,8 @@ class FrustumCaster {
   bool classify_planes(int x0, int x1, int y0, int y1, const Aabb& box, uint8_t planes, uint8_t& straddle) const;
   bool collect(const Job& job, Worker& w);
   void resolve_by_walking(const Job& job, Worker& w, bool from_next_cell);
+  template <typename Visit>
+  void for_each_open_pixel(const Job& job, const Visit& visit) const;
   // Pixel rectangle covered by a reference's bounds. `bounded` is false when the bounds reach
   // behind the eye plane: then the rectangle is the whole view and plane tests decide.
   struct PixelRect {

@@ -220,27 +220,23 @@ void FrustumCaster::fill_from_plane(const Job& job, uint32_t element, const Vec3
 // walked individually. Gives up (returns false, nothing written) when too many elements could
 // occlude it.
 bool FrustumCaster::try_fill(const Job& job, const Incidence* list, uint32_t n, uint32_t element, Worker& w) {
-  const int W = view_.width;
-  const int nx = job.x1 - job.x0 + 1, ny = job.y1 - job.y0 + 1;
-  w.fill_t.assign(static_cast<size_t>(nx) * static_cast<size_t>(ny), kInfinity);
+  const size_t nx = static_cast<size_t>(job.x1 - job.x0 + 1), ny = static_cast<size_t>(job.y1 - job.y0 + 1);
+  auto fill_index = [&](int x, int y) {
+    return static_cast<size_t>(y - job.y0) * nx + static_cast<size_t>(x - job.x0);
+  };
+  w.fill_t.assign(nx * ny, kInfinity);
   // Cheap pre-check with the corners' distance: the far corner bounds most of the fill.
   double max_t = 0.0;
-  for (int y = job.y0; y <= job.y1; ++y) {
-    for (int x = job.x0; x <= job.x1; ++x) {
-      const size_t i = static_cast<size_t>(y) * static_cast<size_t>(W) + static_cast<size_t>(x);
-      if (buffer_->confirmed(i)) continue;
-      const Ray ray = view_.ray(x, y);
-      const double tmin = view_.tmin(ray);
-      const KdTree::Exit e = tree_.exit(job.cell, ray);
-      double t;
-      ++w.counters.ray_primitive_tests;
-      if (scene_.intersect(element, ray, tmin, e.t + cell_slack(e.t, slack_scale_), t)) {
-        ++w.counters.hits;
-        w.fill_t[static_cast<size_t>(y - job.y0) * nx + static_cast<size_t>(x - job.x0)] = t;
-        max_t = std::max(max_t, t);
-      }
+  for_each_open_pixel(job, [&](int x, int y, const Ray& ray, double tmin) {
+    const KdTree::Exit e = tree_.exit(job.cell, ray);
+    double t;
+    ++w.counters.ray_primitive_tests;
+    if (scene_.intersect(element, ray, tmin, e.t + cell_slack(e.t, slack_scale_), t)) {
+      ++w.counters.hits;
+      w.fill_t[fill_index(x, y)] = t;
+      max_t = std::max(max_t, t);
     }
-  }
+  });
   w.occluders.clear();
   for (uint32_t j = 0; j < n; ++j) {
     const uint32_t prim = tree_.ref(list[j].ref);
@@ -250,27 +246,21 @@ bool FrustumCaster::try_fill(const Job& job, const Incidence* list, uint32_t n, 
       if (w.occluders.size() > kMaxFillOccluders) return false;
     }
   }
-  for (int y = job.y0; y <= job.y1; ++y) {
-    for (int x = job.x0; x <= job.x1; ++x) {
-      const size_t i = static_cast<size_t>(y) * static_cast<size_t>(W) + static_cast<size_t>(x);
-      if (buffer_->confirmed(i)) continue;
-      const Ray ray = view_.ray(x, y);
-      const double tmin = view_.tmin(ray);
-      const double te = w.fill_t[static_cast<size_t>(y - job.y0) * nx + static_cast<size_t>(x - job.x0)];
-      if (te == kInfinity) {
-        // The element misses this ray inside the cell: walk it like a 2×2 ray.
-        bool parked = false;
-        const RayHit hit = walk_pixel(x, y, ray, tmin, job.cell, w, parked);
-        if (!parked) confirm(job, x, y, hit.prim, hit.t, ray, w);
-        continue;
-      }
-      RayHit best{element, te};
-      for (uint32_t prim : w.occluders) {
-        offer(prim, ray, tmin, kInfinity, best, w.counters);
-      }
-      confirm(job, x, y, best.prim, best.t, ray, w);
+  for_each_open_pixel(job, [&](int x, int y, const Ray& ray, double tmin) {
+    const double te = w.fill_t[fill_index(x, y)];
+    if (te == kInfinity) {
+      // The element misses this ray inside the cell: walk it like a 2×2 ray.
+      bool parked = false;
+      const RayHit hit = walk_pixel(x, y, ray, tmin, job.cell, w, parked);
+      if (!parked) confirm(job, x, y, hit.prim, hit.t, ray, w);
+      return;
     }
-  }
+    RayHit best{element, te};
+    for (uint32_t prim : w.occluders) {
+      offer(prim, ray, tmin, kInfinity, best, w.counters);
+    }
+    confirm(job, x, y, best.prim, best.t, ray, w);
+  });
   return true;
 }
 

@@ -165,4 +165,18 @@ struct FrustumCaster::Worker {
   record_test(hit, prim, t, best, counters);
 }
 
+// Calls visit(x, y, ray, tmin) for every pixel of the job not confirmed yet, row by row, with
+// the pixel's ray from the eye and where it starts (the near plane).
+template <typename Visit>
+inline void FrustumCaster::for_each_open_pixel(const Job& job, const Visit& visit) const {
+  const size_t W = static_cast<size_t>(view_.width);
+  for (int y = job.y0; y <= job.y1; ++y) {
+    for (int x = job.x0; x <= job.x1; ++x) {
+      if (buffer_->confirmed(static_cast<size_t>(y) * W + static_cast<size_t>(x))) continue;
+      const Ray ray = view_.ray(x, y);
+      visit(x, y, ray, view_.tmin(ray));
+    }
+  }
+}
+
 }  // namespace frontier

@@ -20,28 +20,22 @@ using namespace frustum_detail;
 // Walks every open pixel of the job from its cell (from the cell each ray arrives in next,
 // with `from_next_cell`; from the root's entry when the job is outside it).
 void FrustumCaster::resolve_by_walking(const Job& job, Worker& w, bool from_next_cell) {
-  for (int y = job.y0; y <= job.y1; ++y) {
-    for (int x = job.x0; x <= job.x1; ++x) {
-      const size_t i = static_cast<size_t>(y) * static_cast<size_t>(view_.width) + static_cast<size_t>(x);
-      if (buffer_->confirmed(i)) continue;
-      const Ray ray = view_.ray(x, y);
-      const double tmin = view_.tmin(ray);
-      int32_t start = job.cell;
+  for_each_open_pixel(job, [&](int x, int y, const Ray& ray, double tmin) {
+    int32_t start = job.cell;
+    if (start == KdTree::kNone) {
+      start = tree_.locate(ray.at(tmin), ray.dir);
       if (start == KdTree::kNone) {
-        start = tree_.locate(ray.at(tmin), ray.dir);
-        if (start == KdTree::kNone) {
-          double t_enter;
-          int face;
-          start = tree_.enter_root(ray, tmin, t_enter, face);
-        }
-      } else if (from_next_cell) {
-        start = w.next_cells.arrival(tree_, job.cell, ray, tree_.exit(job.cell, ray));
+        double t_enter;
+        int face;
+        start = tree_.enter_root(ray, tmin, t_enter, face);
       }
-      bool parked = false;
-      const RayHit hit = walk_pixel(x, y, ray, tmin, start, w, parked);
-      if (!parked) confirm(job, x, y, hit.prim, hit.t, ray, w);
+    } else if (from_next_cell) {
+      start = w.next_cells.arrival(tree_, job.cell, ray, tree_.exit(job.cell, ray));
     }
-  }
+    bool parked = false;
+    const RayHit hit = walk_pixel(x, y, ray, tmin, start, w, parked);
+    if (!parked) confirm(job, x, y, hit.prim, hit.t, ray, w);
+  });
 }
 
 // Ray walking for one pixel of a frustum (§3.2's 2×2 case). Unlike a lone ray it shares the
