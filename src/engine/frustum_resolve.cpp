@@ -26,6 +26,12 @@ constexpr size_t kExactOpenCount = 64;
 // Small frusta (pixels × elements up to this) resolve pixel by pixel with depth early-out.
 constexpr size_t kPixelMajorWork = 4096;
 
+namespace {
+// w.open.push_back with the vector's growth path inlined into resolve_in_cell, as it was while
+// Pixel was private to one file: called out of line, it cost the inner loop there registers.
+[[gnu::flatten]] void append_open(std::vector<Pixel>& open, const Pixel& p) { open.push_back(p); }
+}  // namespace
+
 // The incidence entry of reference r whose element lies within `box` (in front of the eye):
 // its screen rectangle, a lower bound on its distance and its cone of directions.
 FrustumCaster::Incidence FrustumCaster::incidence(uint32_t r, const Aabb& box) const {
@@ -155,7 +161,7 @@ size_t FrustumCaster::resolve_in_cell(const Job& job, const Incidence* list, uin
           p.tmax = e.t + cell_slack(e.t, slack_scale_);
           slot = static_cast<uint32_t>(w.open.size());
           w.slot[i] = slot;
-          w.open.push_back(p);
+          append_open(w.open, p);
         } else {
           slot = w.slot[i];
           if (slot == kDoneSlot) continue;
