@@ -248,12 +248,7 @@ void FrustumCaster::split(const Job& job, const Incidence* list, uint32_t n, Wor
   const uint16_t arena_index = w.index;
   for (int c = 0; c < count; ++c) {
     const Rect& r = rects[static_cast<size_t>(c)];
-    Job child;
-    child.x0 = r.x0;
-    child.y0 = r.y0;
-    child.x1 = r.x1;
-    child.y1 = r.y1;
-    child.cell = job.cell;
+    Job child{.x0 = r.x0, .y0 = r.y0, .x1 = r.x1, .y1 = r.y1, .cell = job.cell};
     if (job.cell == KdTree::kNone) {
       child.state = kFresh;
     } else if (n == 0) {
