@@ -256,12 +256,14 @@ size_t FrustumCaster::parked() const {
   return n;
 }
 
+// Whether `cell` is not paged in; then the gate is asked for it.
 bool FrustumCaster::gate_missing(int32_t cell) const {
   if (gate_ == nullptr || !gate_->missing(cell)) return false;
   gate_->want(cell);
   return true;
 }
 
+// Keeps the job until resume_parked() queues it again from the eye.
 void FrustumCaster::park(const Job& job, Worker& w) const {
   Job parked = job;
   parked.state = kFresh;
@@ -354,6 +356,7 @@ bool FrustumCaster::run(const FrameBudget& budget, Counters& counters) {
   return complete();
 }
 
+// The children the workers made become the next level, and their lists the arenas it reads.
 void FrustumCaster::finish_level() {
   level_ordered_ = false;
   arenas_in_.resize(workers_.size());
@@ -414,6 +417,7 @@ bool FrustumCaster::claim(const Job& job, int x, int y, size_t i) const {
   return interior ? buffer_->claim_exclusive(i) : buffer_->claim(i);
 }
 
+// Writes pixel (x, y)'s hit (kNoPrim: background) and its shade, at most once per frame.
 void FrustumCaster::confirm(const Job& job, int x, int y, uint32_t prim, double t, const Ray& ray, Worker& w) {
   const size_t i = static_cast<size_t>(y) * static_cast<size_t>(view_.width) + static_cast<size_t>(x);
   if (!claim(job, x, y, i)) return;

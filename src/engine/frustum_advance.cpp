@@ -96,6 +96,9 @@ bool FrustumCaster::classify_planes(int x0, int x1, int y0, int y1, const Aabb& 
   return test(kLeft, column_normal_[size_t(x0)]) && test(kRight, -column_normal_[size_t(x1)]) &&
          test(kBottom, row_normal_[size_t(y0)]) && test(kTop, -row_normal_[size_t(y1)]);
 }
+
+// Runs one job: its corner rays once, then cell by cell until every pixel of it is resolved,
+// parked, or handed to children.
 void FrustumCaster::process(Job job, Worker& w) {
   const std::array<std::array<int, 2>, 4> corner = {{{job.x0, job.y0}, {job.x1, job.y0},
                                                      {job.x0, job.y1}, {job.x1, job.y1}}};

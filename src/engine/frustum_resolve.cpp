@@ -85,7 +85,6 @@ FrustumCaster::Incidence FrustumCaster::incidence(uint32_t r, const Aabb& box) c
 // rectangle against a frustum's pixel rectangle is the ternary classification against its
 // four planes (every pixel column and row is one plane through the eye), done once per frame
 // instead of once per frustum. Bounds wholly behind the near plane are left out.
-
 const std::vector<FrustumCaster::Incidence>& FrustumCaster::cell_entries(int32_t cell) const {
   CellCache& cache = cell_cache_[size_t(cell)];
   if (cache.stamp.load(std::memory_order_acquire) == frame_) return cache.entries;
