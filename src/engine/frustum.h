@@ -33,6 +33,12 @@
 //   (in Z order, siblings in a row while their cells are in cache; a budgeted frame takes
 //   the Z order in runs spread over the screen, see order_level).
 //
+// The implementation is split by topic behind src/engine/frustum_internal.h: frustum.cpp (the
+// frame, the job queue and its order, anchors, parking), frustum_advance.cpp (a frustum's
+// steps through the cells, splitting), frustum_walk.cpp (lone pixel walks), frustum_resolve.cpp
+// (incidence lists, resolving pixels against them), frustum_fill.cpp (plane and §4 fills) and
+// frustum_ahead.cpp (look-ahead).
+//
 // Exactness argument (why frusta may advance): a frustum moves from cell A to cell B only when
 // all four corner rays leave A through the same face into B; the frustum's cross-section with
 // that face is the convex hull of the corner points, so every interior ray makes the same move,
@@ -116,13 +122,25 @@ class FrustumCaster {
   struct Job;
   struct Incidence;
   struct Worker;
+  struct AheadPlanes;
   enum class Side : uint8_t { Inside, Straddle, Outside };
+  enum class Step : uint8_t;
 
   void process(Job job, Worker& w);
+  Step enter_root(Job& job, const std::array<Ray, 4>& rays, const std::array<double, 4>& tmins, Worker& w);
+  Step resolve_cell_elements(const Job& job, const std::array<Ray, 4>& rays, const std::array<double, 4>& tmins,
+                             Worker& w);
+  Step advance(Job& job, const std::array<Ray, 4>& rays, Worker& w);
+  bool look_ahead(const Job& job, const std::array<Ray, 4>& rays, const std::array<double, 4>& tmins, Worker& w);
   Side classify(const Vec3& normal, const Aabb& box) const;
   bool in_front(const Aabb& box) const;
   bool gather_ahead(const Job& job, const std::array<Ray, 4>& rays, const Triangle* before, size_t limit,
                     Worker& w) const;
+  AheadPlanes ahead_planes(const Job& job, const std::array<Ray, 4>& rays, const Triangle* before) const;
+  bool gather_cell(const Job& job, int32_t cell, uint16_t node_planes, const AheadPlanes& planes, size_t limit,
+                   size_t& budget, Worker& w) const;
+  void push_children(int32_t node, uint16_t node_planes, const Aabb& box, const AheadPlanes& planes,
+                     Worker& w) const;
   bool fill_plane_ahead(const Job& job, const Incidence* list, uint32_t n, const std::array<Ray, 4>& rays,
                         const std::array<double, 4>& tmins, Worker& w);
   uint32_t plane_candidate(const Job& job, const Incidence* list, uint32_t n, const std::array<Ray, 4>& rays,
@@ -135,6 +153,8 @@ class FrustumCaster {
   bool classify_planes(int x0, int x1, int y0, int y1, const Aabb& box, uint8_t planes, uint8_t& straddle) const;
   bool collect(const Job& job, Worker& w);
   void resolve_by_walking(const Job& job, Worker& w, bool from_next_cell);
+  template <typename Visit>
+  void for_each_open_pixel(const Job& job, const Visit& visit) const;
   // Pixel rectangle covered by a reference's bounds. `bounded` is false when the bounds reach
   // behind the eye plane: then the rectangle is the whole view and plane tests decide.
   struct PixelRect {
@@ -169,6 +189,9 @@ class FrustumCaster {
   void finish_level();
   static void order_level(std::vector<Job>& level, bool budgeted);
   Worker& current_worker();
+  void compute_eye_terms(const View& view);
+  void reset_workers(size_t pixels);
+  void queue_root();
   void plan_anchors(int width, int height);
   template <typename OutOfBudget>
   void walk_anchors(const OutOfBudget& out_of_budget);
@@ -207,10 +230,9 @@ class FrustumCaster {
   // image stopped early still has exact samples spread over the screen where reconstruction
   // interpolates from (frusta that finish whole blocks would leave it a few confirmed blocks).
   // Unbudgeted runs skip them: the frusta cover every pixel anyway. Anchors are walked one by
-  // one from the eye, which costs more per sample than frusta: on the 100 M building walk
-  // (640×480, 33 ms) a 16 px spacing cut the mean samples per frame from 175 k to 154 k, 32 px
-  // to 169 k, 64 px to 179 k; PSNR of a 1 %-sample image: 15.5 dB without, 20.0 (64 px),
-  // 22.3 (32 px), 23.3 (16 px) (bench_accuracy --knobs samples).
+  // one from the eye, which costs more per sample than frusta, so the spacing trades samples
+  // per budgeted frame against the quality of an image stopped early (bench_accuracy --knobs
+  // samples measures both): finer spacing costs samples, coarser loses quality quickly.
   static constexpr int kAnchorSpacing = 32;
   std::vector<uint32_t> anchors_;  // pixel indices, for an image of anchor_width_ × anchor_height_
   int anchor_width_ = 0, anchor_height_ = 0;
