@@ -6,12 +6,10 @@
 
 #include "src/core/geometry.h"
 #include "src/core/primitives.h"
-#include "src/core/status.h"
 
 #include <array>
 #include <cstdint>
 #include <optional>
-#include <string>
 #include <vector>
 
 namespace frontier {
@@ -97,10 +95,5 @@ struct Scene {
   // Moves every primitive, light and the camera by `offset` (tests of far-from-origin input).
   void translate(const Vec3& offset);
 };
-
-// Reads a model file (NFF, PLY, OBJ, OFF by extension) into memory through the streaming
-// readers. Polygons are triangulated (concave ones correctly); zero-area triangles are dropped
-// and counted in Scene::degenerate_dropped. Errors name the file and line or byte offset.
-Status load_scene(const std::string& path, Scene& scene);
 
 }  // namespace frontier
