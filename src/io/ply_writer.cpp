@@ -114,11 +114,6 @@ PlyWriter::~PlyWriter() {
   if (!finished_ && !temp_path_.empty()) ::unlink(temp_path_.c_str());
 }
 
-uint64_t PlyWriter::file_bytes() const {
-  return header_bytes_ + vertices_declared_ * layout_.vertex_bytes() +
-         triangles_declared_ * kPlyFaceBytes;
-}
-
 Status PlyWriter::write_at(Section& s) {
   const char* p = s.buffer.data();
   size_t left = s.used;

@@ -82,11 +82,6 @@ class PlyWriter {
   // Flushes, checks that exactly the declared counts were written, closes and renames.
   Status finish();
 
-  uint64_t vertices_written() const { return vertices_done_; }
-  uint64_t triangles_written() const { return triangles_done_; }
-  // Bytes of the complete file (header + both sections).
-  uint64_t file_bytes() const;
-
   // The header text for these counts (used by tests and by create()).
   static std::string header(const PlyVertexLayout& layout, uint64_t vertices, uint64_t triangles,
                             const std::vector<std::string>& comments);
