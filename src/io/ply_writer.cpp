@@ -1,6 +1,8 @@
 // Streaming binary PLY writer: two buffered sections written at known offsets (see header).
 #include "src/io/ply_writer.h"
 
+#include "src/io/staging_path.h"
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -10,7 +12,6 @@
 #include <cstring>
 
 #include <fcntl.h>
-#include <sys/stat.h>
 #include <unistd.h>
 
 namespace frontier {
@@ -87,15 +88,13 @@ Result<std::unique_ptr<PlyWriter>> PlyWriter::create(const std::string& path,
     w->fd_ = STDOUT_FILENO;
     w->seekable_ = false;
   } else {
-    struct stat st {};
-    const bool exists = ::stat(path.c_str(), &st) == 0;
-    const bool regular = !exists || S_ISREG(st.st_mode);
-    const std::string target = regular ? path + ".tmp" : path;
+    const std::string staging = staging_path(path);
+    const std::string& target = staging.empty() ? path : staging;
     w->fd_ = ::open(target.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
     if (w->fd_ < 0)
       return Status::io_error(fmt::format("cannot create '{}': {}", target, errno_text()));
     w->owns_fd_ = true;
-    if (regular) w->temp_path_ = target;
+    w->temp_path_ = staging;
     w->seekable_ = ::lseek(w->fd_, 0, SEEK_CUR) != static_cast<off_t>(-1);
   }
 
