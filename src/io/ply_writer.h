@@ -95,6 +95,13 @@ class PlyWriter {
   PlyWriter() = default;
   Status write_at(Section& s);
   Status reserve(Section& s, size_t bytes);
+  // Appends `count` records of `record_bytes` to `s` in runs of as many as its buffer holds:
+  // encode(out, first, n) writes records first .. first + n - 1 at `out`.
+  template <class Encode>
+  Status append_records(Section& s, size_t record_bytes, size_t count, Encode&& encode);
+  // add()'s two halves: the piece's vertices, and its triangles with indices rebased by `base`.
+  Status add_vertices(const MeshPiece& piece);
+  Status add_faces(const MeshPiece& piece, uint64_t base);
   Status check_piece(const MeshPiece& piece) const;
 
   PlyVertexLayout layout_;
