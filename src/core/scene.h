@@ -92,6 +92,11 @@ struct Scene {
   // Appends primitive i of `other` (geometry, normals, source, material).
   void add_from(const Scene& other, uint32_t i);
 
+  // A scene with this one's materials, lights, camera, background and input_primitives but no
+  // primitives: the start of a scene derived from this one (tessellated, say) whose sources
+  // still name this scene's input primitives.
+  Scene without_primitives() const;
+
   // Moves every primitive, light and the camera by `offset` (tests of far-from-origin input).
   void translate(const Vec3& offset);
 };
