@@ -107,13 +107,10 @@ class BuildingLayout {
   const BuildingShape& shape() const { return shape_; }
   int floors() const { return shape_.floors; }
   int rooms() const { return shape_.rooms; }
-  int bands() const { return bands_; }
-  int columns() const { return columns_; }  // room columns (the grid has columns() + 1)
   bool has_stairs() const { return shape_.floors > 1; }
   int grid_cols() const { return columns_ + 1; }
   int grid_rows() const { return first_band_row_ + 3 * bands_; }
   int cells_per_floor() const { return shape_.rooms + bands_ + 1 + (has_stairs() ? 1 : 0); }
-  int64_t cell_count() const { return int64_t{cells_per_floor()} * shape_.floors; }
   int64_t cell_id(int floor, int local) const { return int64_t{floor} * cells_per_floor() + local; }
 
   // Grid lines: x of column boundary i (0..grid_cols()), y of row boundary j (0..grid_rows()).

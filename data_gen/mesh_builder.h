@@ -44,14 +44,7 @@ class MeshBuilder {
   // Latitude-longitude sphere: `segments` >= 3 around, max(2, segments / 2) bands.
   void sphere(const Vec3& center, double radius, int segments, Rgb color);
 
-  // Counts of each solid, for analytic budgets.
-  static uint64_t box_triangles() { return 12; }
-  static uint64_t cylinder_triangles(int segments, int rings) {
-    return 2ull * segments * rings + 2ull * segments;
-  }
-  static uint64_t sphere_triangles(int segments) {
-    return 2ull * segments * (sphere_bands(segments) - 1);
-  }
+  // Bands of a sphere() with `segments` around.
   static int sphere_bands(int segments) { return segments / 2 < 2 ? 2 : segments / 2; }
 
   // Raw access for height fields and other meshes that are not solids: each call counts, and

@@ -48,13 +48,24 @@ double read_scalar(const unsigned char* p, const std::string& t, bool swap) {
   return v;
 }
 
-Result<Aabb> scan_ply(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return Status::not_found(fmt::format("cannot open '{}': {}", path, std::strerror(errno)));
-  std::string line, format;
-  struct Prop { std::string type; bool list = false; };
-  struct Element { std::string name; uint64_t count = 0; std::vector<std::pair<std::string, Prop>> props; };
-  std::vector<Element> elements;
+struct PlyProperty {
+  std::string type;  // a scalar type, or "COUNT_TYPE ITEM_TYPE" for a list
+  bool list = false;
+};
+struct PlyElement {
+  std::string name;
+  uint64_t count = 0;
+  std::vector<std::pair<std::string, PlyProperty>> props;  // (name, property) in file order
+};
+struct PlyHeader {
+  std::string format;
+  std::vector<PlyElement> elements;
+};
+
+// Reads the header up to and including end_header, leaving `in` at the first data byte.
+Result<PlyHeader> read_ply_header(std::istream& in, const std::string& path) {
+  PlyHeader header;
+  std::string line;
   std::getline(in, line);
   if (line != "ply" && line != "ply\r") return Status::corruption(fmt::format("{}: not a PLY file", path));
   while (std::getline(in, line)) {
@@ -62,15 +73,15 @@ Result<Aabb> scan_ply(const std::string& path) {
     std::istringstream ls(line);
     std::string word;
     ls >> word;
-    if (word == "format") ls >> format;
+    if (word == "format") ls >> header.format;
     else if (word == "element") {
-      Element e;
+      PlyElement e;
       ls >> e.name >> e.count;
-      elements.push_back(e);
-    } else if (word == "property" && !elements.empty()) {
+      header.elements.push_back(e);
+    } else if (word == "property" && !header.elements.empty()) {
       std::string t, name;
       ls >> t;
-      Prop p;
+      PlyProperty p;
       if (t == "list") {
         std::string count_type, item_type;
         ls >> count_type >> item_type >> name;
@@ -79,10 +90,86 @@ Result<Aabb> scan_ply(const std::string& path) {
         ls >> name;
         p = {t, false};
       }
-      elements.back().props.emplace_back(name, p);
+      header.elements.back().props.emplace_back(name, p);
     } else if (word == "end_header") break;
   }
   if (!in) return Status::corruption(fmt::format("{}: PLY header has no end_header", path));
+  return header;
+}
+
+// Where an element's scalar properties sit in a binary record, and which are x, y and z.
+struct PlyRecord {
+  size_t size = 0;              // bytes per record (valid when fixed)
+  bool fixed = true;            // no list properties
+  std::vector<size_t> offsets;  // of property k, when fixed
+  int ix = -1, iy = -1, iz = -1;
+};
+
+Result<PlyRecord> ply_record(const PlyElement& e, const std::string& path) {
+  PlyRecord r;
+  for (size_t k = 0; k < e.props.size(); ++k) {
+    const auto& [name, prop] = e.props[k];
+    if (prop.list) { r.fixed = false; continue; }
+    r.offsets.push_back(r.size);
+    if (type_size(prop.type) == 0)
+      return Status::corruption(fmt::format("{}: unknown PLY type '{}'", path, prop.type));
+    r.size += static_cast<size_t>(type_size(prop.type));
+    if (name == "x") r.ix = static_cast<int>(k);
+    if (name == "y") r.iy = static_cast<int>(k);
+    if (name == "z") r.iz = static_cast<int>(k);
+  }
+  return r;
+}
+
+// The bounds of an ASCII vertex element, one vertex a line.
+Status scan_ascii_vertices(std::istream& in, const PlyElement& e, const PlyRecord& rec, const std::string& path,
+                           Aabb& box) {
+  std::string line;
+  for (uint64_t r = 0; r < e.count; ++r) {
+    if (!std::getline(in, line))
+      return Status::corruption(fmt::format("{}: truncated PLY ({} {} expected)", path, e.count, e.name));
+    std::istringstream ls(line);
+    std::vector<double> v(e.props.size());
+    for (double& x : v) ls >> x;
+    if (!ls) return Status::corruption(fmt::format("{}: bad vertex line '{}'", path, line));
+    const Vec3 p(v[size_t(rec.ix)], v[size_t(rec.iy)], v[size_t(rec.iz)]);
+    if (!finite(p)) return Status::corruption(fmt::format("{}: vertex {} is not finite", path, r));
+    box.extend(p);
+  }
+  return Status::ok();
+}
+
+// The bounds of a binary vertex element of fixed-size records, read 65536 records at a time.
+Status scan_binary_vertices(std::istream& in, const PlyElement& e, const PlyRecord& rec, bool swap,
+                            const std::string& path, Aabb& box) {
+  std::vector<unsigned char> buf(rec.size * 65536);
+  uint64_t left = e.count, index = 0;
+  while (left > 0) {
+    const uint64_t n = std::min<uint64_t>(left, 65536);
+    in.read(reinterpret_cast<char*>(buf.data()), static_cast<std::streamsize>(n * rec.size));
+    if (!in) return Status::corruption(fmt::format("{}: truncated vertex data at vertex {}", path, index));
+    for (uint64_t r = 0; r < n; ++r, ++index) {
+      const unsigned char* bytes = buf.data() + r * rec.size;
+      // No list properties here (checked by the caller), so property k sits at offsets[k].
+      auto get = [&](int k) { return read_scalar(bytes + rec.offsets[size_t(k)], e.props[size_t(k)].second.type, swap); };
+      const Vec3 p(get(rec.ix), get(rec.iy), get(rec.iz));
+      if (!finite(p)) return Status::corruption(fmt::format("{}: vertex {} is not finite", path, index));
+      box.extend(p);
+    }
+    left -= n;
+  }
+  return Status::ok();
+}
+
+// Skips the elements before the vertices (ASCII: a line per record; binary: fixed-size records
+// only, since records with lists cannot be skipped without reading them) and scans the first
+// vertex element.
+Result<Aabb> scan_ply(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return Status::not_found(fmt::format("cannot open '{}': {}", path, std::strerror(errno)));
+  Result<PlyHeader> header = read_ply_header(in, path);
+  if (!header) return header.status();
+  const std::string& format = header->format;
   const bool ascii = format == "ascii";
   const bool big = format == "binary_big_endian";
   if (!ascii && !big && format != "binary_little_endian")
@@ -90,65 +177,33 @@ Result<Aabb> scan_ply(const std::string& path) {
   const bool swap = big == (std::endian::native == std::endian::little);
 
   Aabb box;
-  for (const Element& e : elements) {
+  for (const PlyElement& e : header->elements) {
     const bool is_vertex = e.name == "vertex";
-    int ix = -1, iy = -1, iz = -1;
-    size_t record = 0;
-    bool fixed = true;
-    std::vector<size_t> offsets;
-    for (size_t k = 0; k < e.props.size(); ++k) {
-      const auto& [name, prop] = e.props[k];
-      if (prop.list) { fixed = false; continue; }
-      offsets.push_back(record);
-      if (type_size(prop.type) == 0)
-        return Status::corruption(fmt::format("{}: unknown PLY type '{}'", path, prop.type));
-      record += static_cast<size_t>(type_size(prop.type));
-      if (name == "x") ix = static_cast<int>(k);
-      if (name == "y") iy = static_cast<int>(k);
-      if (name == "z") iz = static_cast<int>(k);
-    }
-    if (is_vertex && (ix < 0 || iy < 0 || iz < 0))
+    Result<PlyRecord> rec = ply_record(e, path);
+    if (!rec) return rec.status();
+    if (is_vertex && (rec->ix < 0 || rec->iy < 0 || rec->iz < 0))
       return Status::corruption(fmt::format("{}: vertex element lacks x, y or z", path));
     if (ascii) {
+      if (is_vertex) {
+        if (Status st = scan_ascii_vertices(in, e, *rec, path, box); !st) return st;
+        return box;
+      }
+      std::string line;
       for (uint64_t r = 0; r < e.count; ++r) {
         if (!std::getline(in, line))
           return Status::corruption(fmt::format("{}: truncated PLY ({} {} expected)", path, e.count, e.name));
-        if (!is_vertex) continue;
-        std::istringstream ls(line);
-        std::vector<double> v(e.props.size());
-        for (double& x : v) ls >> x;
-        if (!ls) return Status::corruption(fmt::format("{}: bad vertex line '{}'", path, line));
-        const Vec3 p(v[size_t(ix)], v[size_t(iy)], v[size_t(iz)]);
-        if (!finite(p)) return Status::corruption(fmt::format("{}: vertex {} is not finite", path, r));
-        box.extend(p);
       }
-      if (is_vertex) return box;
       continue;
     }
-    if (!fixed) {
+    if (!rec->fixed) {
       if (is_vertex) return Status::unsupported(fmt::format("{}: list property in the vertex element", path));
       return Status::unsupported(fmt::format("{}: element '{}' with lists precedes the vertices", path, e.name));
     }
     if (!is_vertex) {
-      in.seekg(static_cast<std::streamoff>(record * e.count), std::ios::cur);
+      in.seekg(static_cast<std::streamoff>(rec->size * e.count), std::ios::cur);
       continue;
     }
-    std::vector<unsigned char> buf(record * 65536);
-    uint64_t left = e.count, index = 0;
-    while (left > 0) {
-      const uint64_t n = std::min<uint64_t>(left, 65536);
-      in.read(reinterpret_cast<char*>(buf.data()), static_cast<std::streamsize>(n * record));
-      if (!in) return Status::corruption(fmt::format("{}: truncated vertex data at vertex {}", path, index));
-      for (uint64_t r = 0; r < n; ++r, ++index) {
-        const unsigned char* rec = buf.data() + r * record;
-        // No list properties here (checked above), so property k sits at offsets[k].
-        auto get = [&](int k) { return read_scalar(rec + offsets[size_t(k)], e.props[size_t(k)].second.type, swap); };
-        const Vec3 p(get(ix), get(iy), get(iz));
-        if (!finite(p)) return Status::corruption(fmt::format("{}: vertex {} is not finite", path, index));
-        box.extend(p);
-      }
-      left -= n;
-    }
+    if (Status st = scan_binary_vertices(in, e, *rec, swap, path, box); !st) return st;
     return box;
   }
   return Status::corruption(fmt::format("{}: no vertex element", path));

@@ -40,9 +40,11 @@ Material shiny(Vec3 color) {
   return m;
 }
 
-class Scene {
+// The NffWriter the families write through: shapes go to the writer, and every 4096 of them
+// (and the rest at flush) to the progress report.
+class ProgressWriter {
  public:
-  Scene(NffWriter& w, Progress& progress) : w_(w), progress_(progress) {}
+  ProgressWriter(NffWriter& w, Progress& progress) : w_(w), progress_(progress) {}
   void sphere(const Vec3& c, double r) {
     w_.sphere(c, r);
     tick();
@@ -73,7 +75,7 @@ class Scene {
 constexpr int kRingSpheres = 12;
 constexpr double kRingRadius = 0.55, kRingSphere = 0.09, kRingRod = 0.035;
 
-void rings(Scene& s, int k, const SpheresParams& p) {
+void rings(ProgressWriter& s, int k, const SpheresParams& p) {
   static const Vec3 kColors[3] = {{0.85, 0.25, 0.2}, {0.25, 0.7, 0.3}, {0.25, 0.4, 0.9}};
   for (int orientation = 0; orientation < 3; ++orientation) {
     s.writer().material(shiny(kColors[orientation]));
@@ -126,7 +128,7 @@ void walk_tree(const SpheresParams& p, int depth, uint64_t id, const Branch& b,
   }
 }
 
-void tree(Scene& s, const SpheresParams& p) {
+void tree(ProgressWriter& s, const SpheresParams& p) {
   const Branch trunk{Vec3(0.0), Vec3(0, 0, 1), 1.0, 0.08};
   s.writer().material(shiny({0.55, 0.35, 0.2}));
   walk_tree(p, 0, 0, trunk, [&](const Branch& b, bool leaf) {
@@ -143,7 +145,7 @@ void tree(Scene& s, const SpheresParams& p) {
 // --- flake -------------------------------------------------------------------------------
 constexpr int kFlakeChildren = 9;
 
-void flake_node(Scene& s, const SpheresParams& p, int depth, uint64_t id, const Vec3& c, double r,
+void flake_node(ProgressWriter& s, const SpheresParams& p, int depth, uint64_t id, const Vec3& c, double r,
                 const Vec3& axis) {
   s.sphere(c, r);
   if (depth == p.size) return;
@@ -162,7 +164,7 @@ void flake_node(Scene& s, const SpheresParams& p, int depth, uint64_t id, const 
 }
 
 // --- shells ------------------------------------------------------------------------------
-void shells(Scene& s, const SpheresParams& p) {
+void shells(ProgressWriter& s, const SpheresParams& p) {
   const uint64_t n = 200ull * p.size * p.size;
   const double turns = 4.0 + p.size, theta_max = turns * 2 * kPi;
   const double shrink = std::log(60.0) / theta_max;  // apex spheres are 1/60 of the mouth's
@@ -261,7 +263,7 @@ Status write_spheres(const SpheresParams& p, const std::string& path, bool quiet
 
   Progress progress("spheres", "primitives", spheres_primitive_count(p), quiet);
   progress.advance(1);  // the ground polygon
-  Scene s(w, progress);
+  ProgressWriter s(w, progress);
   switch (p.family) {
     case SphereFamily::Rings: rings(s, p.size, p); break;
     case SphereFamily::Tree: tree(s, p); break;

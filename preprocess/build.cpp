@@ -4,6 +4,7 @@
 #include "preprocess/spill.h"
 #include "preprocess/walkable_grid.h"
 #include "src/engine/kdtree.h"
+#include "src/io/load_scene.h"
 #include "src/raster/portals.h"
 #include "src/core/progress.h"
 #include "src/io/scene_reader.h"

@@ -3,6 +3,7 @@
 // truncation detected, a killed build leaves no store, peak memory within the budget, and the
 // frontier-store tool.
 #include "preprocess/build.h"
+#include "src/io/load_scene.h"
 #include "src/paging/store_model.h"
 #include "src/paging/collision_grid.h"
 #include "store/page_file.h"

@@ -6,6 +6,7 @@
 // model; walk paths in free space; clear errors for impossible parameters.
 // Also unit tests of the streaming writers in src/ (PlyWriter one- and two-pass, NffWriter).
 #include "src/io/camera_path.h"
+#include "src/io/load_scene.h"
 #include "src/io/nff_writer.h"
 #include "src/io/ply_writer.h"
 #include "src/core/scene.h"

@@ -2,6 +2,7 @@
 // hard cases: eye on split planes and cell corners, axis-parallel views, extreme field of view,
 // far-from-origin coordinates, one-primitive cells, closed meshes that must not leak.
 #include "src/core/tessellate.h"
+#include "src/io/load_scene.h"
 #include "tests/engine_util.h"
 
 #include <gtest/gtest.h>

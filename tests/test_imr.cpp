@@ -2,6 +2,7 @@
 // ties (SPD scenes at 129² and 513², a random scene, a camera inside a bound), bounds that
 // enclose their surfaces, and clip planes, capping, back-sample culling and texture coordinates
 // changing exactly the pixels they should.
+#include "src/io/load_scene.h"
 #include "src/raster/imr.h"
 #include "src/core/scene.h"
 #include "src/core/view.h"

@@ -6,6 +6,7 @@
 // against brute-force primary rays: every surface point a pixel sees lies in a region, inside a
 // visit of its room whose rectangle holds the pixel. Finally the store's "portals" section as
 // frontier-build writes it and frontier-store reports it.
+#include "src/io/load_scene.h"
 #include "src/raster/portals.h"
 #include "src/engine/ray_walk.h"
 #include "src/core/scene.h"

@@ -1,6 +1,7 @@
 // Scene readers and load_scene: the SPD scenes, each format's features, and malformed input
 // (every truncation and seeded byte garbling must give ok or an error naming the file and a
 // line or byte, never a crash). Fixtures are written into a temporary directory by the tests.
+#include "src/io/load_scene.h"
 #include "src/io/scene_reader.h"
 
 #include <fmt/format.h>

@@ -4,6 +4,7 @@
 // as brute force does (and close to the curved original, pixel for pixel by source id).
 #include "src/core/tessellate.h"
 
+#include "src/io/load_scene.h"
 #include "tests/engine_util.h"
 #include "tests/test_files.h"
 

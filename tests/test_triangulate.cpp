@@ -1,7 +1,7 @@
 // triangulate_polygon: properties against simple references. For every polygon the result has
 // n-2 triangles, their areas add up to the polygon's (Newell) area, each triangle keeps the
 // polygon's winding and lies inside the polygon (its centroid passes a crossing-number test).
-#include "src/io/scene_reader.h"
+#include "src/io/triangulate.h"
 
 #include <gtest/gtest.h>
 

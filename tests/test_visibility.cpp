@@ -7,6 +7,7 @@
 #include "preprocess/build.h"
 #include "src/io/camera_path.h"
 #include "src/engine/kdtree.h"
+#include "src/io/load_scene.h"
 #include "src/raster/portals.h"
 #include "src/engine/ray_walk.h"
 #include "src/paging/store_model.h"

@@ -4,6 +4,7 @@
 #include "preprocess/build.h"
 #include "src/io/camera_path.h"
 #include "src/engine/ray_walk.h"
+#include "src/io/load_scene.h"
 #include "src/paging/collision_grid.h"
 #include "src/io/image.h"
 #include "src/paging/paged_world.h"

@@ -44,7 +44,6 @@ class Series {
   size_t capacity() const { return capacity_; }
   // i = 0 is the oldest value kept. REQUIRES: i < size().
   double at(size_t i) const;
-  double last() const { return size_ == 0 ? 0.0 : at(size_ - 1); }
   double max() const;
 
  private:

@@ -5,6 +5,7 @@
 
 #include "src/engine/kdtree.h"
 #include "src/core/scene.h"
+#include "src/io/load_scene.h"
 #include "src/paging/store_model.h"
 #include "viewer/methods.h"
 #include "viewer/outputs.h"

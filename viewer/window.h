@@ -22,7 +22,7 @@ struct WindowOptions {
   double speed = 1.0;                 // metres per second at start (mouse wheel / +,- change it)
   bool walk_available = false;        // the store declares walk mode (Walker given)
   bool start_walking = false;         // start in walk mode (needs a Walker); F toggles
-  FrameBudget budget;                 // the Walkthrough's budget at open() (shown; P toggles it, see window.cpp)
+  FrameBudget budget;                 // the Walkthrough's budget at open() (shown; P toggles it, see window_input.cpp)
   // Scripted input for tests: called once per frame with the frame index; may return GLFW key
   // codes to treat as pressed during that frame.
   std::function<std::vector<int>(int)> script;

@@ -5,43 +5,38 @@
 
 namespace frontier {
 
+namespace {
+
+// Every integer counter with its JSON name: one list, so that a counter cannot be summed but
+// not reported, or the reverse.
+struct Field {
+  const char* name;
+  uint64_t Counters::*member;
+};
+constexpr Field kFields[] = {
+    {"rays", &Counters::rays},                       {"rays_walked", &Counters::rays_walked},
+    {"samples", &Counters::samples},                 {"cells_touched", &Counters::cells_touched},
+    {"cell_visits", &Counters::cell_visits},         {"frusta", &Counters::frusta},
+    {"frustum_fills", &Counters::frustum_fills},     {"frustum_lookaheads", &Counters::frustum_lookaheads},
+    {"plane_tests", &Counters::plane_tests},         {"primitives_tested", &Counters::primitives_tested},
+    {"ray_primitive_tests", &Counters::ray_primitive_tests}, {"hits", &Counters::hits},
+    {"shading_ops", &Counters::shading_ops},         {"specular_ops", &Counters::specular_ops},
+    {"shadow_rays", &Counters::shadow_rays},
+};
+
+}  // namespace
+
 Counters& Counters::operator+=(const Counters& o) {
-  rays += o.rays;
-  rays_walked += o.rays_walked;
-  samples += o.samples;
-  cells_touched += o.cells_touched;
-  cell_visits += o.cell_visits;
-  frusta += o.frusta;
-  frustum_fills += o.frustum_fills;
-  frustum_lookaheads += o.frustum_lookaheads;
-  plane_tests += o.plane_tests;
-  primitives_tested += o.primitives_tested;
-  ray_primitive_tests += o.ray_primitive_tests;
-  hits += o.hits;
-  shading_ops += o.shading_ops;
-  specular_ops += o.specular_ops;
-  shadow_rays += o.shadow_rays;
+  for (const Field& f : kFields) this->*f.member += o.*f.member;
   ms += o.ms;
   return *this;
 }
 
 nlohmann::json Counters::to_json() const {
-  return {{"rays", rays},
-          {"rays_walked", rays_walked},
-          {"samples", samples},
-          {"cells_touched", cells_touched},
-          {"cell_visits", cell_visits},
-          {"frusta", frusta},
-          {"frustum_fills", frustum_fills},
-          {"frustum_lookaheads", frustum_lookaheads},
-          {"plane_tests", plane_tests},
-          {"primitives_tested", primitives_tested},
-          {"ray_primitive_tests", ray_primitive_tests},
-          {"hits", hits},
-          {"shading_ops", shading_ops},
-          {"specular_ops", specular_ops},
-          {"shadow_rays", shadow_rays},
-          {"ms", ms}};
+  nlohmann::json j = nlohmann::json::object();
+  for (const Field& f : kFields) j[f.name] = this->*f.member;
+  j["ms"] = ms;
+  return j;
 }
 
 }  // namespace frontier

@@ -100,6 +100,17 @@ inline bool watertight_triangle(const Triangle& tri, const Ray& ray, double tmin
   return true;
 }
 
+// The roots q / a and c / q of a t² + b t + c = 0 (Vieta's formulas, with q of the sign that
+// avoids cancellation: no difference of nearly equal numbers), in increasing order; returns 2.
+inline int two_roots(double q, double a, double c, double& r0, double& r1) {
+  double x0 = q / a;
+  double x1 = c / q;
+  if (x0 > x1) std::swap(x0, x1);
+  r0 = x0;
+  r1 = x1;
+  return 2;
+}
+
 // Roots of a t² + 2 h t + c = 0 given the quarter discriminant disc = h² - a c (which callers
 // compute in a cancellation-free way). Same output convention as solve_quadratic.
 inline int solve_half_b(double a, double h, double c, double disc, double& r0, double& r1) {
@@ -114,12 +125,7 @@ inline int solve_half_b(double a, double h, double c, double disc, double& r0, d
     return 1;
   }
   const double q = -(h + std::copysign(std::sqrt(disc), h));  // |q| >= sqrt(disc) > 0
-  double x0 = q / a;
-  double x1 = c / q;
-  if (x0 > x1) std::swap(x0, x1);
-  r0 = x0;
-  r1 = x1;
-  return 2;
+  return two_roots(q, a, c, r0, r1);
 }
 
 // Unit axis of a cone and the radius slope k (radius grows by k per unit of height).
@@ -166,12 +172,7 @@ int solve_quadratic(double a, double b, double c, double& r0, double& r1) {
     return 1;
   }
   const double q = -0.5 * (b + std::copysign(std::sqrt(disc), b));
-  double x0 = q / a;
-  double x1 = c / q;
-  if (x0 > x1) std::swap(x0, x1);
-  r0 = x0;
-  r1 = x1;
-  return 2;
+  return two_roots(q, a, c, r0, r1);
 }
 
 bool intersect_triangle(const Triangle& tri, const Ray& ray, double tmin, double tmax,

@@ -51,7 +51,6 @@ class SampleBuffer {
     t_[i] = t;
     color_[i] = color;
   }
-  void set_color(size_t i, Rgb color) { color_[i] = color; }
 
   // Values of confirmed pixels.
   uint32_t prim(size_t i) const { return prim_[i]; }

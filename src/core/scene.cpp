@@ -2,6 +2,17 @@
 #include "src/core/scene.h"
 
 namespace frontier {
+namespace {
+
+// Appends `item` to its per-kind array and its reference to `prims`.
+template <class T>
+void append(std::vector<PrimRef>& prims, PrimKind kind, std::vector<T>& items, const T& item, uint32_t source,
+            uint32_t material) {
+  prims.push_back({kind, static_cast<uint32_t>(items.size()), source, material});
+  items.push_back(item);
+}
+
+}  // namespace
 
 Aabb Scene::prim_bounds(uint32_t i) const {
   const PrimRef& p = prims[i];
@@ -149,28 +160,33 @@ void Scene::add_triangle(const Triangle& t, uint32_t source, uint32_t material,
       triangle_normals.push_back({n, n, n});
     }
   }
-  prims.push_back({PrimKind::Triangle, static_cast<uint32_t>(triangles.size()), source, material});
-  triangles.push_back(t);
+  append(prims, PrimKind::Triangle, triangles, t, source, material);
 }
 
 void Scene::add_sphere(const Sphere& s, uint32_t source, uint32_t material) {
-  prims.push_back({PrimKind::Sphere, static_cast<uint32_t>(spheres.size()), source, material});
-  spheres.push_back(s);
+  append(prims, PrimKind::Sphere, spheres, s, source, material);
 }
 
 void Scene::add_box(const Box& b, uint32_t source, uint32_t material) {
-  prims.push_back({PrimKind::Box, static_cast<uint32_t>(boxes.size()), source, material});
-  boxes.push_back(b);
+  append(prims, PrimKind::Box, boxes, b, source, material);
 }
 
 void Scene::add_cone(const Cone& c, uint32_t source, uint32_t material) {
-  prims.push_back({PrimKind::Cone, static_cast<uint32_t>(cones.size()), source, material});
-  cones.push_back(c);
+  append(prims, PrimKind::Cone, cones, c, source, material);
 }
 
 void Scene::add_quadric(const Quadric& q, uint32_t source, uint32_t material) {
-  prims.push_back({PrimKind::Quadric, static_cast<uint32_t>(quadrics.size()), source, material});
-  quadrics.push_back(q);
+  append(prims, PrimKind::Quadric, quadrics, q, source, material);
+}
+
+Scene Scene::without_primitives() const {
+  Scene out;
+  out.materials = materials;
+  out.lights = lights;
+  out.camera = camera;
+  out.background = background;
+  out.input_primitives = input_primitives;
+  return out;
 }
 
 void Scene::translate(const Vec3& d) {

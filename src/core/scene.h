@@ -6,12 +6,10 @@
 
 #include "src/core/geometry.h"
 #include "src/core/primitives.h"
-#include "src/core/status.h"
 
 #include <array>
 #include <cstdint>
 #include <optional>
-#include <string>
 #include <vector>
 
 namespace frontier {
@@ -94,13 +92,13 @@ struct Scene {
   // Appends primitive i of `other` (geometry, normals, source, material).
   void add_from(const Scene& other, uint32_t i);
 
+  // A scene with this one's materials, lights, camera, background and input_primitives but no
+  // primitives: the start of a scene derived from this one (tessellated, say) whose sources
+  // still name this scene's input primitives.
+  Scene without_primitives() const;
+
   // Moves every primitive, light and the camera by `offset` (tests of far-from-origin input).
   void translate(const Vec3& offset);
 };
-
-// Reads a model file (NFF, PLY, OBJ, OFF by extension) into memory through the streaming
-// readers. Polygons are triangulated (concave ones correctly); zero-area triangles are dropped
-// and counted in Scene::degenerate_dropped. Errors name the file and line or byte offset.
-Status load_scene(const std::string& path, Scene& scene);
 
 }  // namespace frontier

@@ -154,12 +154,7 @@ void tessellate_primitive(std::vector<Triangle>& out, std::vector<Normals>* norm
 }
 
 Scene tessellate(const Scene& scene, const TessellateOptions& options, TessellateStats* stats) {
-  Scene out;
-  out.materials = scene.materials;
-  out.lights = scene.lights;
-  out.camera = scene.camera;
-  out.background = scene.background;
-  out.input_primitives = scene.input_primitives;
+  Scene out = scene.without_primitives();
   out.degenerate_dropped = scene.degenerate_dropped;
   TessellateStats local;
   // Curved primitives need their vertex normals for smooth shading; a scene of only flat

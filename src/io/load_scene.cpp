@@ -5,7 +5,9 @@
 // up its id (so ids match the file, not the scene). Zero-area triangles, polygons with no area,
 // cones with a zero-length axis or no radius and spheres of radius 0 are dropped and counted in
 // Scene::degenerate_dropped (a dropped polygon counts its n-2 triangles).
-#include "src/io/scene_reader.h"
+#include "src/io/load_scene.h"
+
+#include "src/io/triangulate.h"
 
 #include <fmt/format.h>
 

@@ -1,13 +1,14 @@
 // NFF text writer with a bounded buffer (see header).
 #include "src/io/nff_writer.h"
 
+#include "src/io/staging_path.h"
+
 #include <fmt/format.h>
 
 #include <cerrno>
 #include <cstring>
 #include <iterator>
 
-#include <sys/stat.h>
 #include <unistd.h>
 
 namespace frontier {
@@ -27,15 +28,13 @@ Result<std::unique_ptr<NffWriter>> NffWriter::create(const std::string& path) {
   if (path == "-") {
     w->file_ = stdout;
   } else {
-    struct stat st {};
-    const bool exists = ::stat(path.c_str(), &st) == 0;
-    const bool regular = !exists || S_ISREG(st.st_mode);
-    const std::string target = regular ? path + ".tmp" : path;
+    const std::string staging = staging_path(path);
+    const std::string& target = staging.empty() ? path : staging;
     w->file_ = std::fopen(target.c_str(), "wb");
     if (w->file_ == nullptr)
       return Status::io_error(fmt::format("cannot create '{}': {}", target, std::strerror(errno)));
     w->owns_file_ = true;
-    if (regular) w->temp_path_ = target;
+    w->temp_path_ = staging;
   }
   w->buffer_.reserve(kFlushBytes + 4096);
   return w;

@@ -1,6 +1,8 @@
 // Streaming binary PLY writer: two buffered sections written at known offsets (see header).
 #include "src/io/ply_writer.h"
 
+#include "src/io/staging_path.h"
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -10,7 +12,6 @@
 #include <cstring>
 
 #include <fcntl.h>
-#include <sys/stat.h>
 #include <unistd.h>
 
 namespace frontier {
@@ -87,15 +88,13 @@ Result<std::unique_ptr<PlyWriter>> PlyWriter::create(const std::string& path,
     w->fd_ = STDOUT_FILENO;
     w->seekable_ = false;
   } else {
-    struct stat st {};
-    const bool exists = ::stat(path.c_str(), &st) == 0;
-    const bool regular = !exists || S_ISREG(st.st_mode);
-    const std::string target = regular ? path + ".tmp" : path;
+    const std::string staging = staging_path(path);
+    const std::string& target = staging.empty() ? path : staging;
     w->fd_ = ::open(target.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
     if (w->fd_ < 0)
       return Status::io_error(fmt::format("cannot create '{}': {}", target, errno_text()));
     w->owns_fd_ = true;
-    if (regular) w->temp_path_ = target;
+    w->temp_path_ = staging;
     w->seekable_ = ::lseek(w->fd_, 0, SEEK_CUR) != static_cast<off_t>(-1);
   }
 
@@ -112,11 +111,6 @@ Result<std::unique_ptr<PlyWriter>> PlyWriter::create(const std::string& path,
 PlyWriter::~PlyWriter() {
   if (owns_fd_ && fd_ >= 0) ::close(fd_);
   if (!finished_ && !temp_path_.empty()) ::unlink(temp_path_.c_str());
-}
-
-uint64_t PlyWriter::file_bytes() const {
-  return header_bytes_ + vertices_declared_ * layout_.vertex_bytes() +
-         triangles_declared_ * kPlyFaceBytes;
 }
 
 Status PlyWriter::write_at(Section& s) {
@@ -167,78 +161,87 @@ Status PlyWriter::check_piece(const MeshPiece& piece) const {
   return Status::ok();
 }
 
+template <class Encode>
+Status PlyWriter::append_records(Section& s, size_t record_bytes, size_t count, Encode&& encode) {
+  size_t i = 0;
+  while (i < count) {
+    if (Status st = reserve(s, record_bytes); !st) return st;
+    // As many whole records as the buffer holds, in one tight loop.
+    const size_t room = (s.buffer.size() - s.used) / record_bytes;
+    const size_t n = std::min(room, count - i);
+    encode(s.buffer.data() + s.used, i, n);
+    s.used += n * record_bytes;
+    i += n;
+  }
+  return Status::ok();
+}
+
 Status PlyWriter::add(const MeshPiece& piece) {
   if (finished_) return Status::invalid_argument("PLY writer: add() after finish()");
   Status st = check_piece(piece);
   if (!st) return st;
-  const size_t nv = piece.vertex_count(), nt = piece.triangle_count();
+  const size_t nv = piece.vertex_count();
   const bool write_vertices = seekable_ || !face_pass_;
   const bool write_faces = seekable_ || face_pass_;
 
   uint64_t base = vertices_done_;
   if (write_vertices) {
-    if (vertices_done_ + nv > vertices_declared_)
-      return Status::invalid_argument(
-          fmt::format("PLY writer: more vertices than the {} declared", vertices_declared_));
-    const size_t vb = layout_.vertex_bytes();
-    size_t i = 0;
-    while (i < nv) {
-      st = reserve(vertex_section_, vb);
-      if (!st) return st;
-      // As many whole vertices as the buffer holds, in one tight loop.
-      const size_t room = (vertex_section_.buffer.size() - vertex_section_.used) / vb;
-      const size_t n = std::min(room, nv - i);
-      char* out = vertex_section_.buffer.data() + vertex_section_.used;
-      if (!layout_.normals && !layout_.colors) {
-        std::memcpy(out, &piece.positions[3 * i], 12 * n);
-      } else {
-        for (size_t k = i; k < i + n; ++k) {
-          std::memcpy(out, &piece.positions[3 * k], 12);
-          out += 12;
-          if (layout_.normals) {
-            std::memcpy(out, &piece.normals[3 * k], 12);
-            out += 12;
-          }
-          if (layout_.colors) {
-            std::memcpy(out, &piece.colors[3 * k], 3);
-            out += 3;
-          }
-        }
-      }
-      vertex_section_.used += n * vb;
-      i += n;
-    }
-    vertices_done_ += nv;
+    st = add_vertices(piece);
+    if (!st) return st;
   } else {
     base = face_pass_vertex_base_;
     face_pass_vertex_base_ += nv;
     if (face_pass_vertex_base_ > vertices_declared_)
       return Status::invalid_argument("PLY writer: face pass saw more vertices than declared");
   }
+  if (write_faces) return add_faces(piece, base);
+  return Status::ok();
+}
 
-  if (write_faces) {
-    if (triangles_done_ + nt > triangles_declared_)
-      return Status::invalid_argument(
-          fmt::format("PLY writer: more triangles than the {} declared", triangles_declared_));
-    const uint32_t b32 = static_cast<uint32_t>(base);
-    size_t t = 0;
-    while (t < nt) {
-      st = reserve(face_section_, kPlyFaceBytes);
-      if (!st) return st;
-      const size_t room = (face_section_.buffer.size() - face_section_.used) / kPlyFaceBytes;
-      const size_t n = std::min(room, nt - t);
-      char* out = face_section_.buffer.data() + face_section_.used;
-      const uint32_t* idx = &piece.indices[3 * t];
-      for (size_t k = 0; k < n; ++k, out += kPlyFaceBytes, idx += 3) {
-        const uint32_t g[3] = {b32 + idx[0], b32 + idx[1], b32 + idx[2]};
-        out[0] = 3;
-        std::memcpy(out + 1, g, 12);
-      }
-      face_section_.used += n * kPlyFaceBytes;
-      t += n;
+Status PlyWriter::add_vertices(const MeshPiece& piece) {
+  const size_t nv = piece.vertex_count();
+  if (vertices_done_ + nv > vertices_declared_)
+    return Status::invalid_argument(
+        fmt::format("PLY writer: more vertices than the {} declared", vertices_declared_));
+  const Status st = append_records(vertex_section_, layout_.vertex_bytes(), nv, [&](char* out, size_t i, size_t n) {
+    if (!layout_.normals && !layout_.colors) {
+      std::memcpy(out, &piece.positions[3 * i], 12 * n);
+      return;
     }
-    triangles_done_ += nt;
-  }
+    for (size_t k = i; k < i + n; ++k) {
+      std::memcpy(out, &piece.positions[3 * k], 12);
+      out += 12;
+      if (layout_.normals) {
+        std::memcpy(out, &piece.normals[3 * k], 12);
+        out += 12;
+      }
+      if (layout_.colors) {
+        std::memcpy(out, &piece.colors[3 * k], 3);
+        out += 3;
+      }
+    }
+  });
+  if (!st) return st;
+  vertices_done_ += nv;
+  return Status::ok();
+}
+
+Status PlyWriter::add_faces(const MeshPiece& piece, uint64_t base) {
+  const size_t nt = piece.triangle_count();
+  if (triangles_done_ + nt > triangles_declared_)
+    return Status::invalid_argument(
+        fmt::format("PLY writer: more triangles than the {} declared", triangles_declared_));
+  const uint32_t b32 = static_cast<uint32_t>(base);
+  const Status st = append_records(face_section_, kPlyFaceBytes, nt, [&](char* out, size_t t, size_t n) {
+    const uint32_t* idx = &piece.indices[3 * t];
+    for (size_t k = 0; k < n; ++k, out += kPlyFaceBytes, idx += 3) {
+      const uint32_t g[3] = {b32 + idx[0], b32 + idx[1], b32 + idx[2]};
+      out[0] = 3;
+      std::memcpy(out + 1, g, 12);
+    }
+  });
+  if (!st) return st;
+  triangles_done_ += nt;
   return Status::ok();
 }
 

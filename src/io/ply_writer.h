@@ -82,11 +82,6 @@ class PlyWriter {
   // Flushes, checks that exactly the declared counts were written, closes and renames.
   Status finish();
 
-  uint64_t vertices_written() const { return vertices_done_; }
-  uint64_t triangles_written() const { return triangles_done_; }
-  // Bytes of the complete file (header + both sections).
-  uint64_t file_bytes() const;
-
   // The header text for these counts (used by tests and by create()).
   static std::string header(const PlyVertexLayout& layout, uint64_t vertices, uint64_t triangles,
                             const std::vector<std::string>& comments);
@@ -100,6 +95,13 @@ class PlyWriter {
   PlyWriter() = default;
   Status write_at(Section& s);
   Status reserve(Section& s, size_t bytes);
+  // Appends `count` records of `record_bytes` to `s` in runs of as many as its buffer holds:
+  // encode(out, first, n) writes records first .. first + n - 1 at `out`.
+  template <class Encode>
+  Status append_records(Section& s, size_t record_bytes, size_t count, Encode&& encode);
+  // add()'s two halves: the piece's vertices, and its triangles with indices rebased by `base`.
+  Status add_vertices(const MeshPiece& piece);
+  Status add_faces(const MeshPiece& piece, uint64_t base);
   Status check_piece(const MeshPiece& piece) const;
 
   PlyVertexLayout layout_;

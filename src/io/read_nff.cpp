@@ -47,11 +47,7 @@ class NffReader final : public FormatReader {
 Status NffReader::read_next(InputPrimitive& out, bool& end) {
   std::string_view kw;
   for (;;) {
-    if (!tok_.next(kw)) {
-      if (!tok_.status().is_ok()) return tok_.status();
-      end = true;
-      return Status::ok();
-    }
+    if (Status s = tok_.next_statement(kw, end); !s || end) return s;
     Status s;
     if (kw == "s") return read_sphere(out);
     if (kw == "c") return read_cone(out);

@@ -65,11 +65,7 @@ class ObjReader final : public FormatReader {
 Status ObjReader::read_next(InputPrimitive& out, bool& end) {
   std::string_view kw;
   for (;;) {
-    if (!tok_.next(kw)) {
-      if (!tok_.status().is_ok()) return tok_.status();
-      end = true;
-      return Status::ok();
-    }
+    if (Status s = tok_.next_statement(kw, end); !s || end) return s;
     if (kw == "v") {
       Vec3 p;
       Status s = tok_.next_vec3_on_line(p, "coordinate");

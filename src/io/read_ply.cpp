@@ -22,6 +22,7 @@
 #include <bit>
 #include <cerrno>
 #include <cstring>
+#include <type_traits>
 
 #include <sys/mman.h>
 #include <unistd.h>
@@ -92,18 +93,25 @@ inline T load(const uint8_t* p, bool swap) {
   return v;
 }
 
-inline double decode_double(const uint8_t* p, PlyType t, bool swap) {
+// Calls f(T{}) with T the C++ type of PLY type t: the one switch over types that the
+// decoders below share.
+template <typename F>
+inline decltype(auto) with_ply_type(PlyType t, F&& f) {
   switch (t) {
-    case PlyType::Int8: return load<int8_t>(p, swap);
-    case PlyType::UInt8: return load<uint8_t>(p, swap);
-    case PlyType::Int16: return load<int16_t>(p, swap);
-    case PlyType::UInt16: return load<uint16_t>(p, swap);
-    case PlyType::Int32: return load<int32_t>(p, swap);
-    case PlyType::UInt32: return load<uint32_t>(p, swap);
-    case PlyType::Float32: return load<float>(p, swap);
-    case PlyType::Float64: return load<double>(p, swap);
+    case PlyType::Int8: return f(int8_t{});
+    case PlyType::UInt8: return f(uint8_t{});
+    case PlyType::Int16: return f(int16_t{});
+    case PlyType::UInt16: return f(uint16_t{});
+    case PlyType::Int32: return f(int32_t{});
+    case PlyType::UInt32: return f(uint32_t{});
+    case PlyType::Float32: return f(float{});
+    case PlyType::Float64: break;
   }
-  return 0.0;
+  return f(double{});
+}
+
+inline double decode_double(const uint8_t* p, PlyType t, bool swap) {
+  return with_ply_type(t, [&](auto type) -> double { return load<decltype(type)>(p, swap); });
 }
 
 // Decodes `count` indices of type T, each below `limit` (strips also take -1, as a signed
@@ -127,28 +135,27 @@ bool decode_indices_as(const uint8_t* q, size_t count, bool swap, uint32_t limit
 
 bool decode_indices(const uint8_t* q, PlyType type, size_t count, bool swap, uint32_t limit,
                     bool strip, uint32_t* out, int64_t& bad) {
-  switch (type) {
-    case PlyType::Int8: return decode_indices_as<int8_t>(q, count, swap, limit, strip, out, bad);
-    case PlyType::UInt8: return decode_indices_as<uint8_t>(q, count, swap, limit, strip, out, bad);
-    case PlyType::Int16: return decode_indices_as<int16_t>(q, count, swap, limit, strip, out, bad);
-    case PlyType::UInt16: return decode_indices_as<uint16_t>(q, count, swap, limit, strip, out, bad);
-    case PlyType::Int32: return decode_indices_as<int32_t>(q, count, swap, limit, strip, out, bad);
-    case PlyType::UInt32: return decode_indices_as<uint32_t>(q, count, swap, limit, strip, out, bad);
-    default: bad = 0; return false;  // the header admits integer index types only
-  }
+  return with_ply_type(type, [&](auto index_type) -> bool {
+    using T = decltype(index_type);
+    if constexpr (std::is_integral_v<T>) {
+      return decode_indices_as<T>(q, count, swap, limit, strip, out, bad);
+    } else {
+      bad = 0;  // the header admits integer index types only
+      return false;
+    }
+  });
 }
 
-// Integer types only.
+// Integer types only (0 for the others).
 inline int64_t decode_int(const uint8_t* p, PlyType t, bool swap) {
-  switch (t) {
-    case PlyType::Int8: return load<int8_t>(p, swap);
-    case PlyType::UInt8: return load<uint8_t>(p, swap);
-    case PlyType::Int16: return load<int16_t>(p, swap);
-    case PlyType::UInt16: return load<uint16_t>(p, swap);
-    case PlyType::Int32: return load<int32_t>(p, swap);
-    case PlyType::UInt32: return load<uint32_t>(p, swap);
-    default: return 0;
-  }
+  return with_ply_type(t, [&](auto type) -> int64_t {
+    using T = decltype(type);
+    if constexpr (std::is_integral_v<T>) {
+      return load<T>(p, swap);
+    } else {
+      return 0;
+    }
+  });
 }
 
 struct PlyProperty {
@@ -287,6 +294,8 @@ class PlyReader final : public FormatReader {
 
   // Ascii helpers.
   Status skip_ascii_record(const PlyElement& e);
+  // One property of an ASCII record: a scalar, or a list's count and items.
+  Status skip_ascii_property(const PlyProperty& p);
   // Binary helpers.
   Status binary_truncated(std::string_view what) const {
     if (!stream_.status().is_ok()) return Status::io_error(path_ + ": " + stream_.status().message());
@@ -540,19 +549,7 @@ Status PlyReader::read_index_list(const PlyElement& e, bool strip) {
     for (size_t k = 0; k < e.props.size(); ++k) {
       const PlyProperty& p = e.props[k];
       if (static_cast<int>(k) != e.index_prop) {
-        if (p.is_list) {
-          int64_t n = 0;
-          Status s = tok_.next_int(n, "list count");
-          if (!s) return s;
-          if (n < 0) return tok_.error(fmt::format("negative list count {}", n));
-          std::string_view t;
-          for (int64_t j = 0; j < n; ++j) {
-            if (!tok_.next(t)) return tok_.end_error("list item");
-          }
-        } else {
-          std::string_view t;
-          if (!tok_.next(t)) return tok_.end_error(p.name);
-        }
+        if (Status s = skip_ascii_property(p); !s) return s;
         continue;
       }
       int64_t n = 0;
@@ -703,14 +700,7 @@ Status PlyReader::load_vertices(const PlyElement& e) {
       for (size_t k = 0; k < e.props.size(); ++k) {
         const PlyProperty& p = e.props[k];
         if (p.is_list) {
-          int64_t n = 0;
-          Status s = tok_.next_int(n, "list count");
-          if (!s) return s;
-          if (n < 0) return tok_.error(fmt::format("negative list count {}", n));
-          std::string_view t;
-          for (int64_t j = 0; j < n; ++j) {
-            if (!tok_.next(t)) return tok_.end_error("list item");
-          }
+          if (Status s = skip_ascii_property(p); !s) return s;
           continue;
         }
         int f = 0;
@@ -813,19 +803,21 @@ Status PlyReader::skip_element(const PlyElement& e) {
 }
 
 Status PlyReader::skip_ascii_record(const PlyElement& e) {
-  std::string_view t;
   for (const PlyProperty& p : e.props) {
-    if (p.is_list) {
-      int64_t n = 0;
-      Status s = tok_.next_int(n, "list count");
-      if (!s) return s;
-      if (n < 0) return tok_.error(fmt::format("negative list count {}", n));
-      for (int64_t j = 0; j < n; ++j) {
-        if (!tok_.next(t)) return tok_.end_error("list item");
-      }
-    } else if (!tok_.next(t)) {
-      return tok_.end_error(p.name);
-    }
+    if (Status s = skip_ascii_property(p); !s) return s;
+  }
+  return Status::ok();
+}
+
+Status PlyReader::skip_ascii_property(const PlyProperty& p) {
+  std::string_view t;
+  if (!p.is_list) return tok_.next(t) ? Status::ok() : tok_.end_error(p.name);
+  int64_t n = 0;
+  Status s = tok_.next_int(n, "list count");
+  if (!s) return s;
+  if (n < 0) return tok_.error(fmt::format("negative list count {}", n));
+  for (int64_t j = 0; j < n; ++j) {
+    if (!tok_.next(t)) return tok_.end_error("list item");
   }
   return Status::ok();
 }

@@ -14,7 +14,6 @@
 #include "src/core/scene.h"
 #include "src/core/status.h"
 
-#include <array>
 #include <memory>
 #include <string>
 #include <vector>
@@ -64,26 +63,5 @@ class SceneReader {
 
 // Opens a reader chosen by extension (.nff, .ply, .obj, .off; case-insensitive).
 Result<std::unique_ptr<SceneReader>> open_scene_reader(const std::string& path);
-
-// Adds input primitives to a Scene the way load_scene does (the invariants at the top of
-// load_scene.cpp): polygons triangulated, degenerate primitives dropped and counted in
-// Scene::degenerate_dropped. The out-of-core builder uses it on batches of primitives.
-class SceneBuilder {
- public:
-  explicit SceneBuilder(Scene& scene) : scene_(scene) {}
-  void add(const InputPrimitive& p, uint32_t source);
-
- private:
-  void add_triangle(const InputPrimitive& p, uint32_t a, uint32_t b, uint32_t c, uint32_t source);
-  void add_polygon(const InputPrimitive& p, uint32_t source);
-
-  Scene& scene_;
-  std::vector<std::array<uint32_t, 3>> triangles_;
-};
-
-// Splits a simple planar polygon (possibly concave, any winding) into n-2 triangles by ear
-// clipping in its dominant projection plane; writes vertex index triples. Returns false if the
-// polygon is degenerate beyond repair (the caller then drops and counts it).
-bool triangulate_polygon(const std::vector<Vec3>& vertices, std::vector<std::array<uint32_t, 3>>& out);
 
 }  // namespace frontier

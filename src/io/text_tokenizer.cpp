@@ -143,6 +143,14 @@ bool TextTokenizer::next(std::string_view& token) { return take(token, true, tru
 bool TextTokenizer::next_on_line(std::string_view& token) { return take(token, false, true); }
 bool TextTokenizer::peek(std::string_view& token) { return take(token, true, false); }
 
+Status TextTokenizer::next_statement(std::string_view& keyword, bool& end) {
+  end = false;
+  if (next(keyword)) return Status::ok();
+  if (!status_.is_ok()) return status_;
+  end = true;
+  return Status::ok();
+}
+
 void TextTokenizer::skip_line() {
   for (;;) {
     if (pos_ == end_ && ensure(1) == 0) return;
@@ -182,12 +190,15 @@ Status TextTokenizer::next_double(double& out, std::string_view what) {
   return Status::ok();
 }
 
+Status TextTokenizer::token_on_line(std::string_view& token, std::string_view what) {
+  if (next_on_line(token)) return Status::ok();
+  if (!status_.is_ok()) return status_;
+  return error(fmt::format("line ends before {}", what));
+}
+
 Status TextTokenizer::next_double_on_line(double& out, std::string_view what) {
   std::string_view t;
-  if (!next_on_line(t)) {
-    if (!status_.is_ok()) return status_;
-    return error(fmt::format("line ends before {}", what));
-  }
+  if (Status s = token_on_line(t, what); !s) return s;
   bool finite = true;
   if (!parse_double(t, out, finite) || !finite) return number_error(t, what, !finite);
   return Status::ok();
@@ -218,10 +229,7 @@ Status TextTokenizer::next_int(int64_t& out, std::string_view what) {
 
 Status TextTokenizer::next_int_on_line(int64_t& out, std::string_view what) {
   std::string_view t;
-  if (!next_on_line(t)) {
-    if (!status_.is_ok()) return status_;
-    return error(fmt::format("line ends before {}", what));
-  }
+  if (Status s = token_on_line(t, what); !s) return s;
   if (!parse_int(t, out)) return error(fmt::format("expected an integer ({}), got {}", what, quote_token(t)));
   return Status::ok();
 }

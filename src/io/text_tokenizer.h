@@ -42,6 +42,9 @@ class TextTokenizer {
   // The next token on the current line; false at the line end (which is not consumed) or at the
   // end of the file.
   bool next_on_line(std::string_view& token);
+  // The next token as a statement keyword (NFF, OBJ): ok with `end` false and the keyword; ok
+  // with `end` true at the end of the file; or the read error.
+  Status next_statement(std::string_view& keyword, bool& end);
   // The token next() would return, without consuming it.
   bool peek(std::string_view& token);
   // Discards the rest of the current line, including its line end.
@@ -80,6 +83,8 @@ class TextTokenizer {
   bool take(std::string_view& token, bool cross_lines, bool consume);
   size_t ensure(size_t want);
   Status number_error(std::string_view token, std::string_view what, bool not_finite) const;
+  // next_on_line, or the error of a line that ends before `what`.
+  Status token_on_line(std::string_view& token, std::string_view what);
 
   std::string path_;
   Options options_;

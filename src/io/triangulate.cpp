@@ -8,7 +8,7 @@
 // zero-area ear is taken, and as a last resort the most convex vertex is clipped, so the result
 // always has exactly n-2 triangles covering the polygon's area. O(n²) per polygon in the usual
 // case.
-#include "src/io/scene_reader.h"
+#include "src/io/triangulate.h"
 
 #include <cmath>
 

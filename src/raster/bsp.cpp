@@ -160,6 +160,29 @@ class BspBuilder {
     pool_.insert(pool_.end(), v.begin(), v.end());
     return uint32_t(fragments_.size() - 1);
   }
+  // The children of the node being built (their nodes not yet allocated) and the fragments on
+  // its plane.
+  struct Partition {
+    Work front, back;
+    std::vector<uint32_t> coplanar;
+  };
+
+  // Input: every polygon's plane (origin_planes_, origin_area_), its validity and, unless it is
+  // degenerate, its fragment in `fragments`.
+  Status add_input(const PolygonSoup& soup, std::vector<uint32_t>& fragments);
+  Status check_planar_convex(const std::vector<Vec3>& v, const Vec3& normal, const Vec4& plane, size_t i) const;
+  // Sorts `fragments` but `chosen` (kBspNone: none) to the sides of `plane`, splitting those
+  // that span it; coplanar ones count in stats_.coplanar only against a chosen root.
+  void partition(const std::vector<uint32_t>& fragments, const Vec4& plane, uint32_t chosen, Partition& parts);
+  // The node of a cell holding regions of motion: the next plane of regions[0], or (`slot`) the
+  // object slot once the region is carved out. Errors for geometry inside a region and for
+  // regions that overlap or cut each other.
+  Status carve_region(const Work& work, std::span<const BspRegion> regions, BspNode& node, Partition& parts,
+                      bool& slot);
+  // The node of a cell without regions: the plane of the fewest-cuts root candidate.
+  void split_by_best_root(Work& work, BspNode& node, Partition& parts);
+  // Emits the node's faces, allocates its children and pushes their work.
+  void finish_node(const Work& work, BspNode& node, Partition& parts, std::vector<Work>& stack);
   uint32_t choose_root(std::vector<uint32_t>& list);
   void split(uint32_t f, const Vec4& plane, std::vector<uint32_t>& front, std::vector<uint32_t>& back);
   void emit_face(uint32_t f, uint32_t node, uint32_t depth, const Vec4& plane);
@@ -288,16 +311,7 @@ void BspBuilder::emit_face(uint32_t f, uint32_t node, uint32_t depth, const Vec4
   ++faces_;
 }
 
-Status BspBuilder::build(const PolygonSoup& soup, uint32_t origin_offset, std::span<const BspRegion> regions,
-                         uint32_t& root) {
-  soup_ = &soup;
-  origin_offset_ = origin_offset;
-  pool_.clear();
-  fragments_.clear();
-  root = kBspNone;
-
-  // Input: planes, validity, degenerate polygons.
-  Work first;
+Status BspBuilder::add_input(const PolygonSoup& soup, std::vector<uint32_t>& fragments) {
   std::vector<Vec3> v;
   for (size_t i = 0; i < soup.size(); ++i) {
     const std::span<const Vec3> input = soup.polygon(i);
@@ -329,21 +343,110 @@ Status BspBuilder::build(const PolygonSoup& soup, uint32_t origin_offset, std::s
         tree_.origin_area_.push_back(area);
         continue;
       }
-      for (size_t k = 0; k < v.size(); ++k) {
-        if (std::abs(distance(plane, v[k])) > tol_) {
-          return Status::invalid_argument(fmt::format("bsp: polygon {} is not planar within {:g}", i, tol_));
-        }
-        const Vec3 a = v[k] - v[(k + v.size() - 1) % v.size()], b = v[(k + 1) % v.size()] - v[k];
-        if (glm::dot(glm::cross(a, b), normal) < -tol_ * (glm::length(a) + glm::length(b))) {
-          return Status::invalid_argument(fmt::format("bsp: polygon {} is not convex", i));
-        }
-      }
+      if (Status s = check_planar_convex(v, normal, plane, i); !s) return s;
       stats_.degenerate_area += area - area_of(v);
-      first.fragments.push_back(add_fragment(v, uint32_t(i)));
+      fragments.push_back(add_fragment(v, uint32_t(i)));
     }
     tree_.origin_planes_.push_back(plane);
     tree_.origin_area_.push_back(area);
   }
+  return Status::ok();
+}
+
+Status BspBuilder::check_planar_convex(const std::vector<Vec3>& v, const Vec3& normal, const Vec4& plane,
+                                       size_t i) const {
+  for (size_t k = 0; k < v.size(); ++k) {
+    if (std::abs(distance(plane, v[k])) > tol_) {
+      return Status::invalid_argument(fmt::format("bsp: polygon {} is not planar within {:g}", i, tol_));
+    }
+    const Vec3 a = v[k] - v[(k + v.size() - 1) % v.size()], b = v[(k + 1) % v.size()] - v[k];
+    if (glm::dot(glm::cross(a, b), normal) < -tol_ * (glm::length(a) + glm::length(b))) {
+      return Status::invalid_argument(fmt::format("bsp: polygon {} is not convex", i));
+    }
+  }
+  return Status::ok();
+}
+
+void BspBuilder::partition(const std::vector<uint32_t>& fragments, const Vec4& plane, uint32_t chosen,
+                           Partition& parts) {
+  for (uint32_t f : fragments) {
+    if (f == chosen) continue;
+    switch (classify(f, plane)) {
+      case Side::Coplanar:
+        parts.coplanar.push_back(f);
+        if (chosen != kBspNone) ++stats_.coplanar;
+        break;
+      case Side::Front: parts.front.fragments.push_back(f); break;
+      case Side::Back: parts.back.fragments.push_back(f); break;
+      case Side::Spanning: split(f, plane, parts.front.fragments, parts.back.fragments); break;
+    }
+  }
+}
+
+Status BspBuilder::carve_region(const Work& work, std::span<const BspRegion> regions, BspNode& node, Partition& parts,
+                                bool& slot) {
+  const uint32_t r = work.regions[0];
+  const BspRegion& region = regions[r];
+  if (work.regions.size() == 1 && (work.fragments.empty() || work.next_plane == region.planes.size())) {
+    if (!work.fragments.empty()) {
+      return Status::invalid_argument(fmt::format("bsp: static geometry inside the region of motion {}", r));
+    }
+    node.object = r;
+    slot = true;
+    return Status::ok();
+  }
+  if (work.next_plane == region.planes.size()) {
+    return Status::invalid_argument(fmt::format("bsp: regions of motion {} and {} overlap", r, work.regions[1]));
+  }
+  node.plane = region.planes[work.next_plane];
+  partition(work.fragments, node.plane, kBspNone, parts);
+  parts.back.regions.push_back(r);
+  parts.back.next_plane = work.next_plane + 1;
+  for (size_t i = 1; i < work.regions.size(); ++i) {
+    bool in_front = false, in_back = false;
+    for (const Vec3& c : regions[work.regions[i]].corners) {
+      const double d = distance(node.plane, c);
+      in_front |= d > tol_;
+      in_back |= d < -tol_;
+    }
+    if (in_front && in_back) {
+      return Status::invalid_argument(
+          fmt::format("bsp: region of motion {} is cut by a plane of region {}", work.regions[i], r));
+    }
+    (in_front ? parts.front : parts.back).regions.push_back(work.regions[i]);
+  }
+  if (parts.front.regions.size() > 0) parts.front.next_plane = 0;
+  return Status::ok();
+}
+
+void BspBuilder::split_by_best_root(Work& work, BspNode& node, Partition& parts) {
+  const uint32_t chosen = work.fragments[choose_root(work.fragments)];
+  node.plane = tree_.origin_planes_[origin_offset_ + fragments_[chosen].origin];
+  parts.coplanar.push_back(chosen);
+  partition(work.fragments, node.plane, chosen, parts);
+}
+
+void BspBuilder::finish_node(const Work& work, BspNode& node, Partition& parts, std::vector<Work>& stack) {
+  node.first_face = uint32_t(tree_.faces_.size());
+  node.face_count = uint32_t(parts.coplanar.size());
+  for (uint32_t f : parts.coplanar) emit_face(f, work.node, work.depth, node.plane);
+  if (!parts.back.fragments.empty() || !parts.back.regions.empty()) node.back = parts.back.node = new_node();
+  if (!parts.front.fragments.empty() || !parts.front.regions.empty()) node.front = parts.front.node = new_node();
+  tree_.nodes_[work.node] = node;
+  if (parts.back.node != kBspNone) stack.push_back(std::move(parts.back));
+  if (parts.front.node != kBspNone) stack.push_back(std::move(parts.front));
+}
+
+Status BspBuilder::build(const PolygonSoup& soup, uint32_t origin_offset, std::span<const BspRegion> regions,
+                         uint32_t& root) {
+  soup_ = &soup;
+  origin_offset_ = origin_offset;
+  pool_.clear();
+  fragments_.clear();
+  root = kBspNone;
+
+  Work first;
+  if (Status s = add_input(soup, first.fragments); !s) return s;
   for (uint32_t r = 0; r < regions.size(); ++r) first.regions.push_back(r);
   if (first.fragments.empty() && first.regions.empty()) return Status::ok();
 
@@ -361,73 +464,20 @@ Status BspBuilder::build(const PolygonSoup& soup, uint32_t origin_offset, std::s
       return Status::unsupported(fmt::format("bsp: build exceeded its time budget of {:g} ms", options_.time_budget_ms));
     }
     BspNode node;
-    Work front{kBspNone, work.depth + 1, {}, {}, 0}, back{kBspNone, work.depth + 1, {}, {}, 0};
-    std::vector<uint32_t> coplanar;
-
+    Partition parts{{kBspNone, work.depth + 1, {}, {}, 0}, {kBspNone, work.depth + 1, {}, {}, 0}, {}};
     if (!work.regions.empty()) {
       // Carving a region of motion: its planes first, so that no later plane cuts it.
-      const uint32_t r = work.regions[0];
-      const BspRegion& region = regions[r];
-      if (work.regions.size() == 1 && (work.fragments.empty() || work.next_plane == region.planes.size())) {
-        if (!work.fragments.empty()) {
-          return Status::invalid_argument(fmt::format("bsp: static geometry inside the region of motion {}", r));
-        }
-        node.object = r;
+      bool slot = false;
+      if (Status s = carve_region(work, regions, node, parts, slot); !s) return s;
+      if (slot) {
         tree_.nodes_[work.node] = node;
         continue;
       }
-      if (work.next_plane == region.planes.size()) {
-        return Status::invalid_argument(fmt::format("bsp: regions of motion {} and {} overlap", r, work.regions[1]));
-      }
-      node.plane = region.planes[work.next_plane];
-      for (uint32_t f : work.fragments) {
-        switch (classify(f, node.plane)) {
-          case Side::Coplanar: coplanar.push_back(f); break;
-          case Side::Front: front.fragments.push_back(f); break;
-          case Side::Back: back.fragments.push_back(f); break;
-          case Side::Spanning: split(f, node.plane, front.fragments, back.fragments); break;
-        }
-      }
-      back.regions.push_back(r);
-      back.next_plane = work.next_plane + 1;
-      for (size_t i = 1; i < work.regions.size(); ++i) {
-        bool in_front = false, in_back = false;
-        for (const Vec3& c : regions[work.regions[i]].corners) {
-          const double d = distance(node.plane, c);
-          in_front |= d > tol_;
-          in_back |= d < -tol_;
-        }
-        if (in_front && in_back) {
-          return Status::invalid_argument(
-              fmt::format("bsp: region of motion {} is cut by a plane of region {}", work.regions[i], r));
-        }
-        (in_front ? front : back).regions.push_back(work.regions[i]);
-      }
-      if (front.regions.size() > 0) front.next_plane = 0;
     } else {
-      const uint32_t chosen = work.fragments[choose_root(work.fragments)];
-      node.plane = tree_.origin_planes_[origin_offset_ + fragments_[chosen].origin];
-      coplanar.push_back(chosen);
-      for (uint32_t f : work.fragments) {
-        if (f == chosen) continue;
-        switch (classify(f, node.plane)) {
-          case Side::Coplanar: coplanar.push_back(f); ++stats_.coplanar; break;
-          case Side::Front: front.fragments.push_back(f); break;
-          case Side::Back: back.fragments.push_back(f); break;
-          case Side::Spanning: split(f, node.plane, front.fragments, back.fragments); break;
-        }
-      }
+      split_by_best_root(work, node, parts);
     }
     work.fragments = {};  // release before the children allocate
-
-    node.first_face = uint32_t(tree_.faces_.size());
-    node.face_count = uint32_t(coplanar.size());
-    for (uint32_t f : coplanar) emit_face(f, work.node, work.depth, node.plane);
-    if (!back.fragments.empty() || !back.regions.empty()) node.back = back.node = new_node();
-    if (!front.fragments.empty() || !front.regions.empty()) node.front = front.node = new_node();
-    tree_.nodes_[work.node] = node;
-    if (back.node != kBspNone) stack.push_back(std::move(back));
-    if (front.node != kBspNone) stack.push_back(std::move(front));
+    finish_node(work, node, parts, stack);
   }
   return Status::ok();
 }

@@ -35,6 +35,7 @@
 // frame ms minus page-in (decode + refine + graft), waiting for pages and reconstruction.
 #include "preprocess/build.h"
 #include "preprocess/walkable_grid.h"
+#include "src/io/load_scene.h"
 #include "src/paging/collision_grid.h"
 #include "src/io/camera_path.h"
 #include "src/io/image.h"

@@ -16,6 +16,7 @@
 //   data_gen:      frontier-gen building --triangles 1000000 -o building.ply
 //                  frontier-gen terrain --triangles 1000000 -o terrain.ply
 //   bench_bsp MODEL... [--threads 2] [--all-max 20000] [--budget-ms 120000]
+#include "src/io/load_scene.h"
 #include "src/raster/bsp.h"
 #include "src/raster/bsp_render.h"
 #include "src/raster/raster.h"

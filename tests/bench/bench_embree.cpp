@@ -16,6 +16,7 @@
 #include "src/core/scene.h"
 #include "src/core/tessellate.h"
 #include "src/core/view.h"
+#include "src/io/load_scene.h"
 
 #include <CLI/CLI.hpp>
 #include <embree3/rtcore.h>

@@ -7,6 +7,7 @@
 #include "src/engine/render.h"
 #include "src/core/scene.h"
 #include "src/core/view.h"
+#include "src/io/load_scene.h"
 
 #include <CLI/CLI.hpp>
 #include <fmt/core.h>

@@ -11,6 +11,7 @@
 // scene against frame time per tessellation level, with IMR's exact point.
 //
 //   bench_imr --spd ../shared/data/spd --json imr.json          (Markdown tables on stdout)
+#include "src/io/load_scene.h"
 #include "src/raster/gouraud.h"
 #include "src/raster/imr.h"
 #include "src/engine/kdtree.h"

@@ -6,6 +6,7 @@
 //   frontier-gen building --triangles 1000000 -o building.ply
 //   bench_raster building.ply --threads 2
 #include "src/engine/kdtree.h"
+#include "src/io/load_scene.h"
 #include "src/raster/raster.h"
 #include "src/engine/render.h"
 #include "src/core/scene.h"

@@ -3,6 +3,7 @@
 // then through load_scene. Any crash, leak, sanitizer report or hang is a finding; an error
 // Status is the expected outcome for garbage.
 #include "src/core/scene.h"
+#include "src/io/load_scene.h"
 #include "src/io/scene_reader.h"
 
 #include <cstdint>
