@@ -371,6 +371,19 @@ BoundingPolyhedron bounding_polyhedron(const Scene& scene, uint32_t i, int slice
   return b;
 }
 
+std::array<Triangle, 12> box_triangles(const Aabb& box) {
+  Vec3 c[8];
+  for (int k = 0; k < 8; ++k) c[k] = Vec3(k & 1 ? box.hi.x : box.lo.x, k & 2 ? box.hi.y : box.lo.y, k & 4 ? box.hi.z : box.lo.z);
+  const int quads[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+  std::array<Triangle, 12> out;
+  for (size_t q = 0; q < 6; ++q) {
+    const int* v = quads[q];
+    out[2 * q] = Triangle{c[v[0]], c[v[1]], c[v[2]]};
+    out[2 * q + 1] = Triangle{c[v[0]], c[v[2]], c[v[3]]};
+  }
+  return out;
+}
+
 std::vector<Vec3> near_cap(const BoundingPolyhedron& bound, const Vec3& origin, const View& view, double near) {
   Vec3 centre(0.0);
   for (const Vec3& v : bound.vertices) centre += v;
@@ -441,87 +454,161 @@ nlohmann::json ImrCounters::to_json() const {
 // The per-fragment ray cast. It works along the pixel's unnormalised direction D =
 // view.direction(x, y), whose component along the view axis is 1: the sample eye + w D is at
 // view depth w, so the ray parameter is w itself, the near plane is w >= near and the result is
-// 1/w, with no normalisation and no square root but the sphere's. begin_frame() gathers what
-// every fragment of a surface shares (the eye in its local frame, its tolerance box, and for a
-// whole sphere the direct test's constants).
-class ImrRenderer::Program final : public SurfaceProgram {
- public:
-  explicit Program(const ImrRenderer& owner) : owner_(owner) {}
-  void begin_frame(const View& view, double near) {
-    view_ = view;
-    near_ = near;
-    const std::vector<ImplicitSurface>& surfaces = owner_.surfaces_;
-    frame_.resize(surfaces.size());
-    for (size_t i = 0; i < surfaces.size(); ++i) {
-      const ImplicitSurface& s = surfaces[i];
-      Local& f = frame_[i];
-      f.eye = view.eye - s.origin;
-      f.box = cast_box(s);
-      f.radius2 = whole_sphere_radius2(s, f.box);
-      f.eye_c = glm::dot(f.eye, f.eye) - f.radius2;
-    }
+// 1/w, with no normalisation and no square root but the sphere's. local() gathers what every
+// fragment of a surface shares (the eye in its local frame, its tolerance box, and for a whole
+// sphere the direct test's constants).
+SurfaceCaster::Local SurfaceCaster::local(const ImplicitSurface& s) const {
+  Local f;
+  f.eye = view_.eye - s.origin;
+  f.box = cast_box(s);
+  f.radius2 = whole_sphere_radius2(s, f.box);
+  f.eye_c = glm::dot(f.eye, f.eye) - f.radius2;
+  return f;
+}
+
+void SurfaceCaster::begin_frame(const View& view, double near, bool back_sample_culling) {
+  view_ = view;
+  near_ = near;
+  back_sample_culling_ = back_sample_culling;
+  for (size_t i = 0; i < surfaces_.size(); ++i) frame_[i] = local(surfaces_[i]);
+}
+
+void SurfaceCaster::set(uint32_t id, const ImplicitSurface& surface) {
+  if (slot_.size() <= id) slot_.resize(size_t(id) + 1, -1);
+  if (slot_[id] < 0) {
+    slot_[id] = static_cast<int32_t>(surfaces_.size());
+    surfaces_.push_back(surface);
+    frame_.push_back(local(surface));
+    return;
   }
-  SurfaceHit cast(uint32_t id, int x, int y, double& inv_w) const override {
-    const size_t index = static_cast<size_t>(owner_.surface_index_[id]);
-    const Local& f = frame_[index];
-    const Vec3 direction = view_.direction(x, y);
-    const bool culling = owner_.options_.back_sample_culling;
-    if (f.radius2 > 0.0) return cast_sphere(f, direction, near_, culling, inv_w);
-    SurfaceSample sample;
-    if (!cast_local<false>(owner_.surfaces_[index], f.eye, direction, 1.0 / direction, f.box, near_, kInfinity, culling,
-                           sample)) {
-      return sample.culled ? SurfaceHit::BackCulled : SurfaceHit::Miss;
+  const auto slot = static_cast<size_t>(slot_[id]);
+  surfaces_[slot] = surface;
+  frame_[slot] = local(surface);
+}
+
+void SurfaceCaster::clear() {
+  slot_.clear();
+  surfaces_.clear();
+  frame_.clear();
+}
+
+const ImplicitSurface* SurfaceCaster::surface(uint32_t id) const {
+  return id < slot_.size() && slot_[id] >= 0 ? &surfaces_[static_cast<size_t>(slot_[id])] : nullptr;
+}
+
+namespace {
+
+// A whole sphere's samples eye + w D, w >= near: a w² + 2 h w + c = 0 with a = D·D,
+// h = eye·D, c = |eye|² - r², solved as intersect_sphere does, the quarter discriminant
+// h² - a c = a r² - |eye × D|² taken from the centre's offset from the ray's line (Lagrange's
+// identity; no cancellation between two large squares at grazing angles). Sets 1/w.
+SurfaceHit cast_sphere(const Vec3& eye, double radius2, double eye_c, const Vec3& direction, double near, bool culling,
+                       double& inv_w) {
+  const double a = glm::dot(direction, direction);
+  const double h = glm::dot(eye, direction);
+  const Vec3 offset = glm::cross(eye, direction);
+  const double disc = a * radius2 - glm::dot(offset, offset);
+  if (!(disc >= 0.0)) return SurfaceHit::Miss;
+  // The roots are c / q and q / a with q = -(h + sign(h) sqrt(disc)) (no cancellation); for
+  // q > 0 the first is the nearer. Each sample's 1/w is the other ratio inverted (q / c,
+  // a / q), so it need not wait for the root's division.
+  const double q = -(h + std::copysign(std::sqrt(disc), h));
+  if (q == 0.0) return SurfaceHit::Miss;  // a double root at w = 0, before the near plane
+  const double via_c = eye_c / q, via_a = q / a;
+  const bool c_first = q > 0.0;
+  bool culled = false;
+  for (int k = 0; k < 2; ++k) {
+    const bool use_c = c_first == (k == 0);
+    const double root = use_c ? via_c : via_a;
+    if (!(root >= near)) continue;
+    // Leaving the solid (the gradient 2p faces along the ray): a back sample.
+    if (culling && h + root * a > 0.0) {
+      culled = true;
+      continue;
     }
-    inv_w = 1.0 / sample.t;
+    inv_w = use_c ? q / eye_c : a / q;
     return SurfaceHit::Hit;
   }
+  return culled ? SurfaceHit::BackCulled : SurfaceHit::Miss;
+}
 
- private:
-  struct Local {
-    Vec3 eye{0.0};       // the eye in the surface's local frame
-    Aabb box;            // cast_box(surface)
-    double radius2 = 0;  // > 0: a whole sphere about the local origin (whole_sphere_radius2)
-    double eye_c = 0;    // |eye|² - radius2
-  };
+}  // namespace
 
-  // A whole sphere's samples eye + w D, w >= near: a w² + 2 h w + c = 0 with a = D·D,
-  // h = eye·D, c = |eye|² - r², solved as intersect_sphere does, the quarter discriminant
-  // h² - a c = a r² - |eye × D|² taken from the centre's offset from the ray's line (Lagrange's
-  // identity; no cancellation between two large squares at grazing angles). Sets 1/w.
-  static SurfaceHit cast_sphere(const Local& f, const Vec3& direction, double near, bool culling, double& inv_w) {
-    const double a = glm::dot(direction, direction);
-    const double h = glm::dot(f.eye, direction);
-    const Vec3 offset = glm::cross(f.eye, direction);
-    const double disc = a * f.radius2 - glm::dot(offset, offset);
-    if (!(disc >= 0.0)) return SurfaceHit::Miss;
-    // The roots are c / q and q / a with q = -(h + sign(h) sqrt(disc)) (no cancellation); for
-    // q > 0 the first is the nearer. Each sample's 1/w is the other ratio inverted (q / c,
-    // a / q), so it need not wait for the root's division.
-    const double q = -(h + std::copysign(std::sqrt(disc), h));
-    if (q == 0.0) return SurfaceHit::Miss;  // a double root at w = 0, before the near plane
-    const double via_c = f.eye_c / q, via_a = q / a;
-    const bool c_first = q > 0.0;
-    bool culled = false;
-    for (int k = 0; k < 2; ++k) {
-      const bool use_c = c_first == (k == 0);
-      const double root = use_c ? via_c : via_a;
-      if (!(root >= near)) continue;
-      // Leaving the solid (the gradient 2p faces along the ray): a back sample.
-      if (culling && h + root * a > 0.0) {
-        culled = true;
-        continue;
-      }
-      inv_w = use_c ? q / f.eye_c : a / q;
-      return SurfaceHit::Hit;
-    }
-    return culled ? SurfaceHit::BackCulled : SurfaceHit::Miss;
+SurfaceHit SurfaceCaster::cast(uint32_t id, int x, int y, double& inv_w) const {
+  const auto slot = static_cast<size_t>(slot_[id]);
+  const Local& f = frame_[slot];
+  const Vec3 direction = view_.direction(x, y);
+  if (f.radius2 > 0.0) return cast_sphere(f.eye, f.radius2, f.eye_c, direction, near_, back_sample_culling_, inv_w);
+  SurfaceSample sample;
+  if (!cast_local<false>(surfaces_[slot], f.eye, direction, 1.0 / direction, f.box, near_, kInfinity,
+                         back_sample_culling_, sample)) {
+    return sample.culled ? SurfaceHit::BackCulled : SurfaceHit::Miss;
   }
+  inv_w = 1.0 / sample.t;
+  return SurfaceHit::Hit;
+}
 
-  const ImrRenderer& owner_;
-  View view_;
-  double near_ = 0.0;
-  std::vector<Local> frame_;  // per surface
-};
+CurvedBound curved_bound(const Scene& scene, uint32_t i, const ImplicitSurface& surface, int slices, int stacks) {
+  CurvedBound b;
+  b.polyhedron = bounding_polyhedron(scene, i, slices, stacks);
+  b.origin = surface.origin;
+  Vec3 centre(0.0);
+  for (const Vec3& v : b.polyhedron.vertices) centre += v;
+  centre /= static_cast<double>(std::max<size_t>(b.polyhedron.vertices.size(), 1));
+  for (const Vec3& v : b.polyhedron.vertices) b.radius = std::max(b.radius, glm::length(v - centre));
+  b.centre = centre + surface.origin;
+  return b;
+}
+
+double surface_near(const View& view, const Aabb& scene_bounds) {
+  return view.near > 0.0 ? view.near : 1e-7 * std::max(scene_bounds.magnitude(), 1e-300);
+}
+
+void issue_curved(Rasterizer& raster, const CurvedBound& bound, const View& view, double near, uint32_t id,
+                  BoundIssueCounters& counters) {
+  const BoundingPolyhedron& b = bound.polyhedron;
+  // Back faces of the (closed, convex) bound are culled here, so the rasterizer's own culling
+  // option stays the polygons' (open polygons are seen from both sides, as by ray casting).
+  const Vec3 eye = view.eye - bound.origin;
+  for (size_t k = 0; k < b.faces.size(); ++k) {
+    const auto& f = b.faces[k];
+    ++counters.triangles;
+    if (glm::dot(Vec3(b.planes[k]), eye) + b.planes[k].w <= 0.0) {
+      ++counters.back_faces;
+      continue;
+    }
+    raster.submit_bound(
+        Triangle{b.vertices[f[0]] + bound.origin, b.vertices[f[1]] + bound.origin, b.vertices[f[2]] + bound.origin}, id);
+  }
+  // §3.2: where the near plane cuts the bound, its front faces are clipped away; a cap on the
+  // (slightly farther, so the rasterizer keeps it) near plane still casts those rays.
+  const double distance = glm::dot(bound.centre - view.eye, view.forward);
+  const double cap_plane = near * (1.0 + 1e-7);
+  if (std::abs(distance - cap_plane) <= bound.radius) {
+    const std::vector<Vec3> cap = near_cap(b, bound.origin, view, cap_plane);
+    if (!cap.empty()) {
+      ++counters.near_caps;
+      for (size_t k = 1; k + 1 < cap.size(); ++k) raster.submit_bound(Triangle{cap[0], cap[k], cap[k + 1]}, id);
+      counters.triangles += cap.size() - 2;
+    }
+  }
+}
+
+Vec3 surface_normal(const ImplicitSurface& s, const Vec3& p, const Vec3& fallback) {
+  const Vec3 q = p - s.origin;
+  Vec3 normal = unit_or(s.gradient(q), fallback);
+  if (s.capped) {
+    // On a clip plane (within rounding): the cap's normal.
+    for (int j = 0; j < s.clip_count; ++j) {
+      const Vec4& plane = s.clip[static_cast<size_t>(j)];
+      if (std::abs(glm::dot(Vec3(plane), q) + plane.w) <= 1e-9 * s.scale() &&
+          std::abs(s.value(q)) > 1e-9 * glm::length(s.gradient(q)) * s.scale()) {
+        normal = Vec3(plane);
+      }
+    }
+  }
+  return normal;
+}
 
 ImrRenderer::ImrRenderer(const Scene& scene, const ImrOptions& options)
     : scene_(scene),
@@ -530,31 +617,18 @@ ImrRenderer::ImrRenderer(const Scene& scene, const ImrOptions& options)
       arena_(options.threads > 0 ? options.threads : tbb::info::default_concurrency()) {
   if (options_.stacks <= 0) options_.stacks = std::max(2, options_.slices / 2);
   shader_ = std::make_unique<Shader>(scene_, tree_);
-  surface_index_.assign(scene.size(), -1);
+  bound_index_.assign(scene.size(), -1);
   for (uint32_t i = 0; i < scene.size(); ++i) {
     ImplicitSurface s;
     if (!implicit_surface_of(scene, i, s)) continue;
-    surface_index_[i] = static_cast<int32_t>(surfaces_.size());
-    BoundingPolyhedron b = bounding_polyhedron(scene, i, options_.slices, options_.stacks);
-    Vec3 centre(0.0);
-    for (const Vec3& v : b.vertices) centre += v;
-    centre /= static_cast<double>(b.vertices.size());
-    double radius = 0.0;
-    for (const Vec3& v : b.vertices) radius = std::max(radius, glm::length(v - centre));
-    const Vec3 world = centre + s.origin;
-    bound_spheres_.push_back({world.x, world.y, world.z, radius});
-    bound_triangles_ += b.triangles();
-    surfaces_.push_back(s);
-    bounds_.push_back(std::move(b));
+    bound_index_[i] = static_cast<int32_t>(bounds_.size());
+    bounds_.push_back(curved_bound(scene, i, s, options_.slices, options_.stacks));
+    bound_triangles_ += bounds_.back().polyhedron.triangles();
+    caster_.set(i, s);
   }
-  program_ = std::make_unique<Program>(*this);
 }
 
 ImrRenderer::~ImrRenderer() = default;
-
-const ImplicitSurface* ImrRenderer::surface_of_prim(uint32_t i) const {
-  return surface_index_[i] >= 0 ? &surfaces_[static_cast<size_t>(surface_index_[i])] : nullptr;
-}
 
 namespace {
 
@@ -640,56 +714,25 @@ void ImrRenderer::issue(uint32_t prim, const View& view, double near, ImrCounter
     return;
   }
   if (ref.kind == PrimKind::Box) {
-    const Aabb& box = scene_.boxes[ref.index].bounds;
-    Vec3 c[8];
-    for (int k = 0; k < 8; ++k) c[k] = Vec3(k & 1 ? box.hi.x : box.lo.x, k & 2 ? box.hi.y : box.lo.y, k & 4 ? box.hi.z : box.lo.z);
-    // Outward counter-clockwise faces.
-    const int quads[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
-    for (const auto& q : quads) {
-      raster_->submit(Triangle{c[q[0]], c[q[1]], c[q[2]]}, prim);
-      raster_->submit(Triangle{c[q[0]], c[q[2]], c[q[3]]}, prim);
-    }
+    for (const Triangle& t : box_triangles(scene_.boxes[ref.index].bounds)) raster_->submit(t, prim);
     counters.polygons += 12;
     counters.triangles_issued += 12;
     return;
   }
-  const int32_t si = surface_index_[prim];
-  if (si < 0) return;  // a degenerate sphere or cone: nothing to see
-  const ImplicitSurface& s = surfaces_[static_cast<size_t>(si)];
-  const BoundingPolyhedron& b = bounds_[static_cast<size_t>(si)];
+  const int32_t bi = bound_index_[prim];
+  if (bi < 0) return;  // a degenerate sphere or cone: nothing to see
   ++counters.objects;
-  // Back faces of the (closed, convex) bound are culled here, so the rasterizer's own culling
-  // option stays the polygons' (open polygons are seen from both sides, as by ray casting).
-  const Vec3 eye = view.eye - s.origin;
-  for (size_t k = 0; k < b.faces.size(); ++k) {
-    const auto& f = b.faces[k];
-    ++counters.triangles_issued;
-    if (glm::dot(Vec3(b.planes[k]), eye) + b.planes[k].w <= 0.0) {
-      ++counters.bound_back_faces;
-      continue;
-    }
-    raster_->submit_bound(Triangle{b.vertices[f[0]] + s.origin, b.vertices[f[1]] + s.origin, b.vertices[f[2]] + s.origin},
-                          prim);
-  }
-  // §3.2: where the near plane cuts the bound, its front faces are clipped away; a cap on the
-  // (slightly farther, so the rasterizer keeps it) near plane still casts those rays.
-  const auto& sphere = bound_spheres_[static_cast<size_t>(si)];
-  const double distance = glm::dot(Vec3(sphere[0], sphere[1], sphere[2]) - view.eye, view.forward);
-  const double cap_plane = near * (1.0 + 1e-7);
-  if (std::abs(distance - cap_plane) <= sphere[3]) {
-    const std::vector<Vec3> cap = near_cap(b, s.origin, view, cap_plane);
-    if (!cap.empty()) {
-      ++counters.near_caps;
-      for (size_t k = 1; k + 1 < cap.size(); ++k) raster_->submit_bound(Triangle{cap[0], cap[k], cap[k + 1]}, prim);
-      counters.triangles_issued += cap.size() - 2;
-    }
-  }
+  BoundIssueCounters issued;
+  issue_curved(*raster_, bounds_[static_cast<size_t>(bi)], view, near, prim, issued);
+  counters.triangles_issued += issued.triangles;
+  counters.bound_back_faces += issued.back_faces;
+  counters.near_caps += issued.near_caps;
 }
 
 ImrCounters ImrRenderer::render(const View& view) {
   const auto start = std::chrono::steady_clock::now();
   ImrCounters counters;
-  const double near = view.near > 0.0 ? view.near : 1e-7 * std::max(scene_.bounds().magnitude(), 1e-300);
+  const double near = surface_near(view, scene_.bounds());
   RasterOptions raster_options;
   raster_options.threads = options_.threads;
   raster_options.cull_back_faces = options_.cull_back_faces;
@@ -697,8 +740,8 @@ ImrCounters ImrRenderer::render(const View& view) {
   if (!raster_ || !raster_->matches(view, raster_options)) raster_ = std::make_unique<Rasterizer>(view, raster_options);
   raster_->clear();
   raster_->reset_counters();
-  raster_->set_surface_program(program_.get());
-  program_->begin_frame(view, near);
+  raster_->set_surface_program(&caster_);
+  caster_.begin_frame(view, near, options_.back_sample_culling);
 
   auto t = std::chrono::steady_clock::now();
   const std::vector<uint32_t> order = issue_order(scene_, tree_, view.eye, options_.order, options_.seed, &counters.nodes_visited);
@@ -729,18 +772,7 @@ Rgb ImrRenderer::shade_sample(uint32_t prim, const Ray& ray, double depth, Count
   const ImplicitSurface* s = surface_of_prim(prim);
   if (s == nullptr || (!s->capped && !s->textured)) return shader_->shade(prim, ray, depth, options_.shadows, shading);
   const Vec3 p = ray.at(depth);
-  const Vec3 q = p - s->origin;
-  Vec3 normal = unit_or(s->gradient(q), -ray.dir);
-  if (s->capped) {
-    // On a clip plane (within rounding): the cap's normal.
-    for (int j = 0; j < s->clip_count; ++j) {
-      const Vec4& plane = s->clip[static_cast<size_t>(j)];
-      if (std::abs(glm::dot(Vec3(plane), q) + plane.w) <= 1e-9 * s->scale() &&
-          std::abs(s->value(q)) > 1e-9 * glm::length(s->gradient(q)) * s->scale()) {
-        normal = Vec3(plane);
-      }
-    }
-  }
+  const Vec3 normal = surface_normal(*s, p, -ray.dir);
   Rgb c = shader_->shade_surface(scene_.prims[prim].material, normal, ray, depth, shading);
   if (s->textured) {
     const auto uv = texture_coordinates(*s, p);

@@ -108,9 +108,89 @@ struct BoundingPolyhedron {
 // stacks >= 2.
 BoundingPolyhedron bounding_polyhedron(const Scene& scene, uint32_t i, int slices, int stacks);
 
+// A box as 12 triangles, wound counter-clockwise seen from outside (how boxes are rasterized).
+std::array<Triangle, 12> box_triangles(const Aabb& box);
+
 // The polygon where the near plane {p : dot(p - eye, forward) = near} cuts `bound` (placed
 // at `origin`), wound to face the eye; empty when the plane misses the bound.
 std::vector<Vec3> near_cap(const BoundingPolyhedron& bound, const Vec3& origin, const View& view, double near);
+
+// A curved primitive's bound as the rasterizer is given it: the polyhedron (local frame), where
+// that frame sits in the world, and a world sphere around the polyhedron (the near-plane test).
+struct CurvedBound {
+  BoundingPolyhedron polyhedron;
+  Vec3 origin{0.0};  // the ImplicitSurface's
+  Vec3 centre{0.0};  // world
+  double radius = 0.0;
+};
+// The bound of scene primitive i, whose surface is `surface` (implicit_surface_of(scene, i)).
+CurvedBound curved_bound(const Scene& scene, uint32_t i, const ImplicitSurface& surface, int slices, int stacks);
+
+// What issuing bounds cost.
+struct BoundIssueCounters {
+  uint64_t triangles = 0;   // bound and cap triangles issued (culled back faces included)
+  uint64_t back_faces = 0;  // of those, bound faces facing away (not sent to the rasterizer)
+  uint64_t near_caps = 0;   // bounds the near plane cut (a cap was sent)
+};
+
+// The near plane bound fragments cast their rays from: view.near, or, without one, 1e-7 of
+// the scene's magnitude (nearer hits are lost).
+double surface_near(const View& view, const Aabb& scene_bounds);
+
+// Sends `bound` to `raster` as surface-bound triangles with `id` (Rasterizer::submit_bound):
+// its faces that face the eye (the bound is closed and convex, so the others are hidden by
+// them) and, where the near plane `near` cuts it, a cap just beyond that plane, so that a
+// camera inside the bound still casts rays at its surface (§3.2). The rasterizer's surface
+// program must know surface `id` before the next flush.
+void issue_curved(Rasterizer& raster, const CurvedBound& bound, const View& view, double near, uint32_t id,
+                  BoundIssueCounters& counters);
+
+// The unit normal a sample at world point p of `surface` is lit with: the gradient's direction
+// (`fallback` where it vanishes), or on a capped solid's clip plane, the plane's.
+Vec3 surface_normal(const ImplicitSurface& surface, const Vec3& p, const Vec3& fallback);
+
+// The per-fragment ray cast of immediate-mode ray casting for implicit surfaces keyed by the
+// rasterizer id their bounds are submitted with: a fragment of id k casts view.ray(x, y) at
+// surface k from the near plane on. Ids may be sparse (scene primitive indices) or dense
+// (a frame's submission indices). Precomputes per surface what all its fragments share.
+// Thread safety: cast() runs concurrently in the rasterizer's workers; the other members only
+// between flushes.
+class SurfaceCaster final : public SurfaceProgram {
+ public:
+  // The frame's view and near plane (surface_near), and whether back-facing samples are
+  // discarded (§3.5); recomputes the shared terms of every surface held.
+  void begin_frame(const View& view, double near, bool back_sample_culling);
+  // Surface `id` is `surface` (replacing any), for the frame begun.
+  void set(uint32_t id, const ImplicitSurface& surface);
+  // Forgets every surface.
+  void clear();
+  // The surface of id, or null. A caller may change a surface between frames (capping, texture
+  // planes): begin_frame() takes it into account.
+  const ImplicitSurface* surface(uint32_t id) const;
+  ImplicitSurface* surface(uint32_t id) {
+    return const_cast<ImplicitSurface*>(static_cast<const SurfaceCaster*>(this)->surface(id));
+  }
+  // Surfaces held.
+  size_t size() const { return surfaces_.size(); }
+
+  SurfaceHit cast(uint32_t id, int x, int y, double& inv_w) const override;
+
+ private:
+  struct Local {
+    Vec3 eye{0.0};       // the eye in the surface's local frame
+    Aabb box;            // the bounds grown by the cast tolerance
+    double radius2 = 0;  // > 0: a whole sphere about the local origin
+    double eye_c = 0;    // |eye|² - radius2
+  };
+  Local local(const ImplicitSurface& surface) const;
+
+  View view_;
+  double near_ = 0.0;
+  bool back_sample_culling_ = false;
+  std::vector<int32_t> slot_;  // per id: into surfaces_ and frame_, or -1
+  std::vector<ImplicitSurface> surfaces_;
+  std::vector<Local> frame_;
+};
 
 // The order objects are issued in: the scene's, a seeded random permutation (the paper's
 // "unordered"), front to back along the k-d tree (each primitive at its first cell), or sorted
@@ -185,11 +265,10 @@ class ImrRenderer {
 
   // The surface of scene primitive i, or null. The mutable form lets a caller declare what the
   // scene format cannot (capping, texture planes) between frames; the bound stays as built.
-  const ImplicitSurface* surface_of_prim(uint32_t i) const;
-  ImplicitSurface* surface(uint32_t i) { return const_cast<ImplicitSurface*>(surface_of_prim(i)); }
+  const ImplicitSurface* surface_of_prim(uint32_t i) const { return caster_.surface(i); }
+  ImplicitSurface* surface(uint32_t i) { return caster_.surface(i); }
 
  private:
-  class Program;
   void issue(uint32_t prim, const View& view, double near, ImrCounters& counters);
   void shade(const View& view, ImrCounters& counters);
   Rgb shade_sample(uint32_t prim, const Ray& ray, double depth, Counters& shading, uint64_t& fetches) const;
@@ -198,13 +277,11 @@ class ImrRenderer {
   ImrOptions options_;
   KdTree tree_;
   std::unique_ptr<Shader> shader_;
-  std::vector<ImplicitSurface> surfaces_;
-  std::vector<BoundingPolyhedron> bounds_;
-  std::vector<int32_t> surface_index_;  // per scene primitive: into surfaces_, or -1
-  std::vector<std::array<double, 4>> bound_spheres_;  // per surface: world centre, radius (near test)
+  SurfaceCaster caster_;                // the surfaces, keyed by scene primitive
+  std::vector<CurvedBound> bounds_;
+  std::vector<int32_t> bound_index_;    // per scene primitive: into bounds_, or -1
   uint64_t bound_triangles_ = 0;
   std::unique_ptr<Rasterizer> raster_;
-  std::unique_ptr<Program> program_;
   tbb::task_arena arena_;  // options_.threads workers, for the shading pass
 };
 

@@ -61,7 +61,12 @@ nlohmann::json CullCounters::to_json() const {
           {"primitives_culled", primitives_culled},
           {"back_faces_culled", back_faces_culled},
           {"primitives_rasterized", primitives_rasterized},
+          {"curved_primitives", curved_primitives},
+          {"bound_triangles", bound_triangles},
           {"pixels_rasterized", pixels_rasterized},
+          {"surface_rays", surface_rays},
+          {"surface_hits", surface_hits},
+          {"degenerate_primitives", degenerate_primitives},
           {"skipped_primitives", skipped_primitives},
           {"cells_waited", cells_waited},
           {"cells_unavailable", cells_unavailable},
@@ -187,25 +192,59 @@ void CullingRenderer::draw_cell(int32_t cell, uint32_t mask) {
       ++counters_.primitives_culled;
       continue;
     }
-    const PrimRef& ref = scene.prims[p];
-    if (ref.kind != PrimKind::Triangle) {
-      ++counters_.skipped_primitives;
-      continue;
-    }
-    const Triangle& t = scene.triangles[ref.index];
-    const Vec3 normal = glm::cross(t.v1 - t.v0, t.v2 - t.v0);
-    if (options_.cull_back_faces && glm::dot(normal, t.v0 - view_.eye) >= 0.0) {
-      ++counters_.back_faces_culled;
-      drawn_[p] = stamp_;
-      continue;
-    }
     drawn_[p] = stamp_;
-    raster_->submit(t, static_cast<uint32_t>(table_.size()));
-    const double len = glm::length(normal);
-    table_.push_back({ref.source, ref.material, len > 0.0 ? normal / len : Vec3(0.0, 0.0, 1.0)});
-    ++counters_.primitives_rasterized;
-    ++since_update_;
+    const PrimRef& ref = scene.prims[p];
+    switch (ref.kind) {
+      case PrimKind::Triangle:
+        if (draw_triangle(scene.triangles[ref.index], ref)) ++counters_.primitives_rasterized;
+        continue;
+      case PrimKind::Box: {
+        bool any = false;
+        for (const Triangle& t : box_triangles(scene.boxes[ref.index].bounds)) any = draw_triangle(t, ref) || any;
+        if (any) ++counters_.primitives_rasterized;
+        continue;
+      }
+      case PrimKind::Sphere:
+      case PrimKind::Cone:
+      case PrimKind::Quadric:
+        draw_curved(scene, p, ref);
+        continue;
+    }
+    ++counters_.skipped_primitives;  // a kind added to PrimKind and not drawn here
   }
+}
+
+bool CullingRenderer::draw_triangle(const Triangle& t, const PrimRef& ref) {
+  const Vec3 normal = glm::cross(t.v1 - t.v0, t.v2 - t.v0);
+  if (options_.cull_back_faces && glm::dot(normal, t.v0 - view_.eye) >= 0.0) {
+    ++counters_.back_faces_culled;
+    return false;
+  }
+  raster_->submit(t, static_cast<uint32_t>(table_.size()));
+  const double len = glm::length(normal);
+  table_.push_back({ref.source, ref.material, len > 0.0 ? normal / len : Vec3(0.0, 0.0, 1.0)});
+  ++since_update_;
+  return true;
+}
+
+void CullingRenderer::draw_curved(const Scene& scene, uint32_t p, const PrimRef& ref) {
+  ImplicitSurface surface;
+  if (!implicit_surface_of(scene, p, surface)) {
+    ++counters_.degenerate_primitives;
+    return;
+  }
+  // The surface is copied into the frame's caster, so that it outlives the cell's eviction.
+  const auto id = static_cast<uint32_t>(table_.size());
+  caster_.set(id, surface);
+  table_.push_back({ref.source, ref.material, Vec3(0.0)});
+  const int slices = std::max(options_.bound_slices, 3);
+  BoundIssueCounters issued;
+  issue_curved(*raster_, curved_bound(scene, p, surface, slices, std::max(2, slices / 2)), view_, surface_near_, id,
+               issued);
+  ++counters_.primitives_rasterized;
+  ++counters_.curved_primitives;
+  counters_.bound_triangles += issued.triangles - issued.back_faces;
+  since_update_ += issued.triangles - issued.back_faces;
 }
 
 // Depth-first from `root`. Missing cells: put into `deferred` (order-independent classes), or,
@@ -281,6 +320,10 @@ CullCounters CullingRenderer::render(const View& view, CullSource& source) {
   raster_ = std::make_unique<Rasterizer>(view, ro);
   planes_ = std::make_unique<Planes>(view);
   table_.clear();
+  caster_.clear();
+  surface_near_ = surface_near(view, source.tree().bounds());
+  caster_.begin_frame(view, surface_near_, options_.cull_back_faces);
+  raster_->set_surface_program(&caster_);
   generation_ = source.generation();
   if (++stamp_ == 0) reset_stamps();
   since_update_ = 0;
@@ -337,6 +380,8 @@ CullCounters CullingRenderer::render(const View& view, CullSource& source) {
   raster_->flush();
   const RasterCounters& rc = raster_->counters();
   counters_.pixels_rasterized = rc.fragments;
+  counters_.surface_rays = rc.surface_rays;
+  counters_.surface_hits = rc.surface_hits;
   counters_.raster_ms = rc.setup_ms + rc.raster_ms;
   counters_.ms = ms_since(start);
   source_ = nullptr;
@@ -369,7 +414,10 @@ std::vector<Rgb> CullingRenderer::shade(const Shader& shader, Counters& counters
       const size_t i = size_t(y) * size_t(view_.width) + size_t(x);
       if (frame[i] == kNoPrim) continue;
       const Entry& e = table_[frame[i]];
-      out[i] = shader.shade_surface(e.material, e.normal, view_.ray(x, y), depth[i], counters);
+      const Ray ray = view_.ray(x, y);
+      const ImplicitSurface* surface = caster_.surface(frame[i]);
+      const Vec3 normal = surface != nullptr ? surface_normal(*surface, ray.at(depth[i]), -ray.dir) : e.normal;
+      out[i] = shader.shade_surface(e.material, normal, ray, depth[i], counters);
     }
   }
   return out;

@@ -16,10 +16,16 @@
 //                   primitives in the rooms reached are drawn. When the eye is in no room (outside
 //                   the building), frustum culling instead (counted).
 //
+// Every primitive kind is drawn: triangles, boxes as their 12 triangles, and curved primitives
+// (spheres, cones, quadrics) as immediate-mode ray casting draws them (src/raster/imr.h, the
+// same pieces): the bound's front faces (and a near-plane cap) are rasterized, each bound
+// fragment that passes the depth test casts its pixel's ray at the surface, and only a hit is
+// written, so a fragment that misses writes no depth (the z-pyramid stays conservative).
 // All rasterizing classes are conservative: every primitive that can be seen is drawn, so the
 // id image equals brute-force ray casting's except on exact ties and pixel centres exactly on
 // an edge (tests/test_visibility.cpp). Back-face culling is only conservative for closed
-// solids seen from outside (the generated buildings, tessellated SPD scenes); it is an option.
+// solids seen from outside (the generated buildings, spheres, tessellated SPD scenes); it is an
+// option, and curved surfaces then drop back-facing samples (imr's back-sample culling).
 //
 // Paging: a cell whose page is not in memory is asked for. The order-independent classes
 // (exhaustive, frustum-cull, portals) put it aside and draw it when it arrives; occlusion
@@ -28,13 +34,16 @@
 // whose working set exceeds the budget still completes its frame, reading pages again.
 //
 // Ids in the z-buffer are frame-local submission indices; a per-frame table maps them to the
-// input primitive (source), material and geometric normal, so that the image can be shaded
-// after the cells it came from were evicted (flat shading, no shadows).
+// input primitive (source), material and geometric normal (curved primitives: their implicit
+// surface, kept by the frame's SurfaceCaster), so that the image can be shaded after the cells
+// it came from were evicted (flat normals for polygons, the surface's for curved hits; no
+// shadows).
 #pragma once
 
 #include "src/core/counters.h"
 #include "src/engine/frame_renderer.h"
 #include "src/engine/kdtree.h"
+#include "src/raster/imr.h"
 #include "src/raster/raster.h"
 #include "src/core/scene.h"
 #include "src/engine/shading.h"
@@ -60,6 +69,8 @@ std::optional<Visibility> parse_visibility(std::string_view text);
 struct CullOptions {
   Visibility visibility = Visibility::kFrustumCull;
   bool cull_back_faces = false;  // drop triangles facing away from the eye before rasterizing
+                                 // (and back-facing samples of curved surfaces)
+  int bound_slices = 6;          // curved primitives' bounds (ImrOptions::slices; stacks: half)
   int threads = 0;               // rasterizer threads (0: all cores)
   // Occlusion culling: triangles submitted between z-pyramid updates. Fewer updates cost less
   // but see less occlusion (the pyramid lags behind what is drawn; never wrong).
@@ -76,10 +87,15 @@ struct CullCounters {
   uint64_t subtrees_occluded = 0;      // nodes found hidden by the z-pyramid
   uint64_t primitives_touched = 0;     // primitive references examined
   uint64_t primitives_culled = 0;      // of those, outside the frustum or the portal regions
-  uint64_t back_faces_culled = 0;
-  uint64_t primitives_rasterized = 0;  // triangles submitted to the rasterizer
-  uint64_t pixels_rasterized = 0;      // fragments depth-tested
-  uint64_t skipped_primitives = 0;     // non-triangle primitives (the rasterizer draws triangles)
+  uint64_t back_faces_culled = 0;      // triangles (box faces too) facing away
+  uint64_t primitives_rasterized = 0;  // primitives submitted to the rasterizer (all kinds)
+  uint64_t curved_primitives = 0;      // of those, spheres, cones and quadrics (bound + rays)
+  uint64_t bound_triangles = 0;        // their bound and near-cap triangles rasterized
+  uint64_t pixels_rasterized = 0;      // fragments depth-tested (bound fragments included)
+  uint64_t surface_rays = 0;           // bound fragments that passed the depth test: rays cast
+  uint64_t surface_hits = 0;           // of those, rays that met the surface
+  uint64_t degenerate_primitives = 0;  // zero-size spheres and cones: nothing to draw (nor to hit)
+  uint64_t skipped_primitives = 0;     // primitives of a kind the classes cannot draw (none known)
   uint64_t cells_waited = 0;           // missing cells this frame had to page in
   uint64_t cells_unavailable = 0;      // missing cells that could not come in (failed or too big)
   uint64_t rooms_visited = 0;          // portals: room visits
@@ -138,7 +154,8 @@ class CullingRenderer {
   std::vector<uint32_t> ids() const;
   // Ray parameter t per pixel (kInfinity: background).
   std::vector<double> depths() const;
-  // Shades the last frame with `shader`'s lights and materials (flat normals, no shadows).
+  // Shades the last frame with `shader`'s lights and materials (flat normals for polygons, the
+  // surface normal for curved primitives; no shadows).
   std::vector<Rgb> shade(const Shader& shader, Counters& counters) const;
 
  private:
@@ -151,6 +168,10 @@ class CullingRenderer {
 
   void traverse(Item root, bool front_to_back, std::vector<Item>* deferred);
   void draw_cell(int32_t cell, uint32_t mask);
+  // Submits one triangle of primitive `ref` (back-face culling first); false when culled.
+  bool draw_triangle(const Triangle& t, const PrimRef& ref);
+  // Submits world primitive p's bound, its fragments casting rays at its surface.
+  void draw_curved(const Scene& scene, uint32_t p, const PrimRef& ref);
   bool admit(const Aabb& box, uint32_t& mask);
   void reset_stamps();
   void update_pyramid();
@@ -163,6 +184,8 @@ class CullingRenderer {
   std::unique_ptr<Rasterizer> raster_;
   std::unique_ptr<DepthPyramid> pyramid_;
   std::vector<Entry> table_;
+  SurfaceCaster caster_;          // curved primitives' surfaces, keyed by submission id
+  double surface_near_ = 0.0;     // where their rays start (surface_near)
   std::vector<uint32_t> drawn_;   // per world primitive: frame stamp when submitted
   uint32_t stamp_ = 0;
   uint64_t generation_ = 0;
