@@ -22,6 +22,7 @@
 #include <climits>
 #include <cmath>
 #include <condition_variable>
+#include <cstdio>
 #include <deque>
 #include <filesystem>
 #include <memory>
@@ -294,6 +295,16 @@ class StoreBuilder {
     return Status::ok();
   }
 
+  // The first pass hands each input's new warnings (scene_reader.h) to stderr and the report,
+  // so each is told once although binary inputs are parsed twice.
+  void report_warnings(const SceneReader& reader, size_t& reported) {
+    const std::vector<std::string>& w = reader.warnings();
+    for (; reported < w.size(); ++reported) {
+      std::fprintf(stderr, "warning: %s\n", w[reported].c_str());
+      report_.warnings.push_back(w[reported]);
+    }
+  }
+
   // The cells and portals of the single input's sidecar, kept serialized until the end. Rooms
   // and portals describe one model: with several inputs the store is no longer that model.
   Status read_portals() {
@@ -386,6 +397,8 @@ class StoreBuilder {
       auto opened = open_scene_reader(in);
       if (!opened) return opened.status();
       SceneReader& reader = **opened;
+      size_t warned = 0;
+      if (first) report_warnings(reader, warned);
       // Each input's materials follow the previous inputs' (the first pass appends them).
       if (first) material_bases_.push_back(static_cast<uint32_t>(info_.materials.size()));
       const uint32_t material_base = material_bases_[k];
@@ -393,7 +406,10 @@ class StoreBuilder {
       uint64_t local = 0, last_bytes = 0;
       for (;;) {
         bool end = false;
-        if (Status s = reader.next(prim, end); !s) return s;
+        if (Status s = reader.next(prim, end); !s) {
+          if (first) report_warnings(reader, warned);
+          return s;
+        }
         if (!end) {
           if (source_base + local >= UINT32_MAX) {
             return Status::unsupported(fmt::format("{}: more than {} primitives in all inputs", in, UINT32_MAX - 1));
@@ -417,6 +433,7 @@ class StoreBuilder {
       }
       source_base += local;
       if (!first) continue;
+      report_warnings(reader, warned);
       const SceneHeader& h = reader.header();
       info_.materials.insert(info_.materials.end(), h.materials.begin(), h.materials.end());
       if (info_.materials.size() == material_base) info_.materials.emplace_back();  // meshes: one default

@@ -16,10 +16,11 @@
 
 namespace frontier {
 
-// Reads a model file (NFF, PLY, OBJ, OFF by extension) into memory through the streaming
+// Reads a model file (NFF, PLY, OBJ, OFF, STL by extension) into memory through the streaming
 // readers. Polygons are triangulated (concave ones correctly); zero-area triangles are dropped
-// and counted in Scene::degenerate_dropped. Errors name the file and line or byte offset.
-Status load_scene(const std::string& path, Scene& scene);
+// and counted in Scene::degenerate_dropped. Errors name the file and line or byte offset. The
+// reader's warnings go to `warnings` when given, else to stderr.
+Status load_scene(const std::string& path, Scene& scene, std::vector<std::string>* warnings = nullptr);
 
 // Adds input primitives to a Scene the way load_scene does: polygons triangulated, degenerate
 // primitives dropped and counted in Scene::degenerate_dropped. The out-of-core builder uses it

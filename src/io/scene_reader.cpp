@@ -21,12 +21,22 @@ Result<std::unique_ptr<SceneReader>> open_scene_reader(const std::string& path) 
   if (ext == "ply") return open_ply_reader(path);
   if (ext == "obj") return open_obj_reader(path);
   if (ext == "off") return open_off_reader(path);
+  if (ext == "stl") return open_stl_reader(path);
   return Status::unsupported(
-      fmt::format("{}: unknown model format '.{}' (expected .nff, .ply, .obj or .off)", path, ext));
+      fmt::format("{}: unknown model format '.{}' (expected .nff, .ply, .obj, .off or .stl)", path, ext));
 }
 
 Status byte_error(const std::string& path, uint64_t offset, std::string_view message) {
   return Status::corruption(fmt::format("{}: byte {}: {}", path, offset, message));
+}
+
+std::string trailing_data_warning(const std::string& path, uint64_t offset, uint64_t bytes) {
+  return fmt::format("{}: byte {}: {} bytes after the last record, ignored", path, offset, bytes);
+}
+
+void FormatReader::warn_trailing_text(TextTokenizer& tok) {
+  const uint64_t at = tok.skip_space();
+  if (at < tok.size()) warn(trailing_data_warning(tok.path(), at, tok.size() - at));
 }
 
 std::string check_polygon_size(int64_t count, std::string_view what) {
