@@ -231,6 +231,7 @@ class StoreBuilder {
   Result<BuildReport> run() {
     const auto start = std::chrono::steady_clock::now();
     if (Status s = check_options(); !s) return s;
+    if (Status s = check_inputs(); !s) return s;
     if (Status s = read_portals(); !s) return s;
     auto temp = TempDir::create(options_.output);
     if (!temp) return temp.status();
@@ -291,6 +292,15 @@ class StoreBuilder {
       if (fs::exists(in) && fs::exists(options_.output) && fs::equivalent(in, options_.output)) {
         return Status::invalid_argument(fmt::format("{}: the output would overwrite an input", in));
       }
+    }
+    return Status::ok();
+  }
+
+  // Every input opens as a model (a file, not a directory; a known extension; a sound header)
+  // before anything is made on disk: NotFound or Corruption naming the file, exit 1.
+  Status check_inputs() const {
+    for (const std::string& in : options_.inputs) {
+      if (auto reader = open_scene_reader(in); !reader) return reader.status();
     }
     return Status::ok();
   }
@@ -364,6 +374,11 @@ class StoreBuilder {
         });
     if (!read) return read;
     progress.finish();
+    if (report_.primitives == 0) {
+      std::string inputs;
+      for (const std::string& in : options_.inputs) inputs += (inputs.empty() ? "" : ", ") + in;
+      return no_primitives_error(inputs, report_.input_primitives);
+    }
     if (!reparse_) {
       if (Status s = out.close(); !s) return s;
       report_.spill_bytes += out.bytes();
@@ -434,6 +449,8 @@ class StoreBuilder {
       source_base += local;
       if (!first) continue;
       report_warnings(reader, warned);
+      // One rule for every format: a file with nothing in it is bad input, not an empty store.
+      if (local == 0) return no_primitives_error(in, 0);
       const SceneHeader& h = reader.header();
       info_.materials.insert(info_.materials.end(), h.materials.begin(), h.materials.end());
       if (info_.materials.size() == material_base) info_.materials.emplace_back();  // meshes: one default

@@ -891,7 +891,10 @@ void expect_ok_or_positioned_error(const std::string& path, const std::string& n
   if (s.is_ok()) return;
   const std::string& m = s.message();
   EXPECT_EQ(m.rfind(path, 0), 0u) << what << ": " << m;
-  EXPECT_TRUE(m.find(": line ") != std::string::npos || m.find(": byte ") != std::string::npos) << what << ": " << m;
+  // A file cut short before its first primitive holds none: that error names no position.
+  EXPECT_TRUE(m.find(": line ") != std::string::npos || m.find(": byte ") != std::string::npos ||
+              m == no_primitives_error(path, 0).message())
+      << what << ": " << m;
 }
 
 TEST(ReaderMalformed, EveryTruncationIsOkOrAnError) {

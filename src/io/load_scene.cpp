@@ -84,6 +84,12 @@ void SceneBuilder::add_polygon(const InputPrimitive& p, uint32_t source) {
   for (const auto& t : triangles_) add_triangle(p, t[0], t[1], t[2], source);
 }
 
+Status no_primitives_error(const std::string& path, uint64_t input_primitives) {
+  if (input_primitives == 0) return Status::corruption(fmt::format("{}: the model has no primitives", path));
+  return Status::corruption(fmt::format("{}: the model has no primitives left: all {} are degenerate (no area)",
+                                        path, input_primitives));
+}
+
 Status load_scene(const std::string& path, Scene& scene, std::vector<std::string>* warnings) {
   scene = Scene{};
   auto opened = open_scene_reader(path);
@@ -119,6 +125,7 @@ Status load_scene(const std::string& path, Scene& scene, std::vector<std::string
     }
   }
   if (!s) return s;
+  if (scene.size() == 0) return no_primitives_error(path, count);
   const SceneHeader& h = reader.header();
   scene.materials = h.materials;
   if (scene.materials.empty()) scene.materials.emplace_back();

@@ -5,10 +5,22 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
+#include <cstring>
+
+#include <sys/stat.h>
 
 namespace frontier {
 
 Result<std::unique_ptr<SceneReader>> open_scene_reader(const std::string& path) {
+  // What is not a file is told as such before its extension is looked at.
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) {
+    const int err = errno;
+    std::string msg = fmt::format("{}: cannot open: {}", path, std::strerror(err));
+    return err == ENOENT ? Status::not_found(std::move(msg)) : Status::io_error(std::move(msg));
+  }
+  if (S_ISDIR(st.st_mode)) return Status::io_error(fmt::format("{}: is a directory, not a model file", path));
   const size_t slash = path.find_last_of('/');
   const size_t dot = path.find_last_of('.');
   std::string ext;

@@ -67,7 +67,9 @@ class SceneReader {
   virtual uint64_t bytes_total() const = 0;
 };
 
-// Opens a reader chosen by extension (.nff, .ply, .obj, .off, .stl; case-insensitive).
+// Opens a reader chosen by extension (.nff, .ply, .obj, .off, .stl; case-insensitive). Errors:
+// NotFound (no such file), IoError (unreadable, a directory), Unsupported (another extension),
+// or the format's own header errors; each message starts with the path.
 Result<std::unique_ptr<SceneReader>> open_scene_reader(const std::string& path);
 
 }  // namespace frontier
