@@ -1,10 +1,12 @@
 // Streaming bounds scanners (see header).
 #include "data_gen/model_bounds.h"
 
+#include "src/io/ply_header.h"
+#include "src/io/text_tokenizer.h"
+
 #include <fmt/format.h>
 
 #include <algorithm>
-#include <bit>
 #include <cerrno>
 #include <cstring>
 #include <fstream>
@@ -23,80 +25,6 @@ std::string lower_extension(const std::string& path) {
 
 bool finite(const Vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 
-int type_size(const std::string& t) {
-  if (t == "char" || t == "uchar" || t == "int8" || t == "uint8") return 1;
-  if (t == "short" || t == "ushort" || t == "int16" || t == "uint16") return 2;
-  if (t == "int" || t == "uint" || t == "float" || t == "int32" || t == "uint32" || t == "float32") return 4;
-  if (t == "double" || t == "float64") return 8;
-  return 0;
-}
-
-double read_scalar(const unsigned char* p, const std::string& t, bool swap) {
-  unsigned char b[8];
-  const int n = type_size(t);
-  std::memcpy(b, p, static_cast<size_t>(n));
-  if (swap) std::reverse(b, b + n);
-  if (t == "float" || t == "float32") { float v; std::memcpy(&v, b, 4); return v; }
-  if (t == "double" || t == "float64") { double v; std::memcpy(&v, b, 8); return v; }
-  if (t == "char" || t == "int8") return static_cast<int8_t>(b[0]);
-  if (t == "uchar" || t == "uint8") return b[0];
-  if (t == "short" || t == "int16") { int16_t v; std::memcpy(&v, b, 2); return v; }
-  if (t == "ushort" || t == "uint16") { uint16_t v; std::memcpy(&v, b, 2); return v; }
-  if (t == "int" || t == "int32") { int32_t v; std::memcpy(&v, b, 4); return v; }
-  uint32_t v;
-  std::memcpy(&v, b, 4);
-  return v;
-}
-
-struct PlyProperty {
-  std::string type;  // a scalar type, or "COUNT_TYPE ITEM_TYPE" for a list
-  bool list = false;
-};
-struct PlyElement {
-  std::string name;
-  uint64_t count = 0;
-  std::vector<std::pair<std::string, PlyProperty>> props;  // (name, property) in file order
-};
-struct PlyHeader {
-  std::string format;
-  std::vector<PlyElement> elements;
-};
-
-// Reads the header up to and including end_header, leaving `in` at the first data byte.
-Result<PlyHeader> read_ply_header(std::istream& in, const std::string& path) {
-  PlyHeader header;
-  std::string line;
-  std::getline(in, line);
-  if (line != "ply" && line != "ply\r") return Status::corruption(fmt::format("{}: not a PLY file", path));
-  while (std::getline(in, line)) {
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    std::istringstream ls(line);
-    std::string word;
-    ls >> word;
-    if (word == "format") ls >> header.format;
-    else if (word == "element") {
-      PlyElement e;
-      ls >> e.name >> e.count;
-      header.elements.push_back(e);
-    } else if (word == "property" && !header.elements.empty()) {
-      std::string t, name;
-      ls >> t;
-      PlyProperty p;
-      if (t == "list") {
-        std::string count_type, item_type;
-        ls >> count_type >> item_type >> name;
-        p = {count_type + " " + item_type, true};
-      } else {
-        ls >> name;
-        p = {t, false};
-      }
-      header.elements.back().props.emplace_back(name, p);
-    } else if (word == "end_header") break;
-  }
-  if (!in) return Status::corruption(fmt::format("{}: PLY header has no end_header", path));
-  return header;
-}
-
 // Where an element's scalar properties sit in a binary record, and which are x, y and z.
 struct PlyRecord {
   size_t size = 0;              // bytes per record (valid when fixed)
@@ -105,19 +33,16 @@ struct PlyRecord {
   int ix = -1, iy = -1, iz = -1;
 };
 
-Result<PlyRecord> ply_record(const PlyElement& e, const std::string& path) {
+PlyRecord ply_record(const PlyElement& e) {
   PlyRecord r;
-  for (size_t k = 0; k < e.props.size(); ++k) {
-    const auto& [name, prop] = e.props[k];
-    if (prop.list) { r.fixed = false; continue; }
+  for (const PlyProperty& prop : e.props) {
+    if (prop.is_list) r.fixed = false;
     r.offsets.push_back(r.size);
-    if (type_size(prop.type) == 0)
-      return Status::corruption(fmt::format("{}: unknown PLY type '{}'", path, prop.type));
-    r.size += static_cast<size_t>(type_size(prop.type));
-    if (name == "x") r.ix = static_cast<int>(k);
-    if (name == "y") r.iy = static_cast<int>(k);
-    if (name == "z") r.iz = static_cast<int>(k);
+    r.size += ply_type_size(prop.type);
   }
+  r.ix = e.find("x");
+  r.iy = e.find("y");
+  r.iz = e.find("z");
   return r;
 }
 
@@ -125,7 +50,7 @@ Result<PlyRecord> ply_record(const PlyElement& e, const std::string& path) {
 Status scan_ascii_vertices(std::istream& in, const PlyElement& e, const PlyRecord& rec, const std::string& path,
                            Aabb& box) {
   std::string line;
-  for (uint64_t r = 0; r < e.count; ++r) {
+  for (int64_t r = 0; r < e.count; ++r) {
     if (!std::getline(in, line))
       return Status::corruption(fmt::format("{}: truncated PLY ({} {} expected)", path, e.count, e.name));
     std::istringstream ls(line);
@@ -143,7 +68,7 @@ Status scan_ascii_vertices(std::istream& in, const PlyElement& e, const PlyRecor
 Status scan_binary_vertices(std::istream& in, const PlyElement& e, const PlyRecord& rec, bool swap,
                             const std::string& path, Aabb& box) {
   std::vector<unsigned char> buf(rec.size * 65536);
-  uint64_t left = e.count, index = 0;
+  uint64_t left = static_cast<uint64_t>(e.count), index = 0;
   while (left > 0) {
     const uint64_t n = std::min<uint64_t>(left, 65536);
     in.read(reinterpret_cast<char*>(buf.data()), static_cast<std::streamsize>(n * rec.size));
@@ -151,7 +76,7 @@ Status scan_binary_vertices(std::istream& in, const PlyElement& e, const PlyReco
     for (uint64_t r = 0; r < n; ++r, ++index) {
       const unsigned char* bytes = buf.data() + r * rec.size;
       // No list properties here (checked by the caller), so property k sits at offsets[k].
-      auto get = [&](int k) { return read_scalar(bytes + rec.offsets[size_t(k)], e.props[size_t(k)].second.type, swap); };
+      auto get = [&](int k) { return ply_decode_double(bytes + rec.offsets[size_t(k)], e.props[size_t(k)].type, swap); };
       const Vec3 p(get(rec.ix), get(rec.iy), get(rec.iz));
       if (!finite(p)) return Status::corruption(fmt::format("{}: vertex {} is not finite", path, index));
       box.extend(p);
@@ -161,49 +86,48 @@ Status scan_binary_vertices(std::istream& in, const PlyElement& e, const PlyReco
   return Status::ok();
 }
 
-// Skips the elements before the vertices (ASCII: a line per record; binary: fixed-size records
-// only, since records with lists cannot be skipped without reading them) and scans the first
-// vertex element.
+// The header through the scene reader's parser (src/io/ply_header.h: the same files are
+// accepted, unknown header lines skipped); skips the elements before the vertices (ASCII: a
+// line per record; binary: fixed-size records only, since records with lists cannot be skipped
+// without reading them) and scans the first vertex element.
 Result<Aabb> scan_ply(const std::string& path) {
+  PlyHeader header;
+  {
+    TextTokenizer tok;
+    if (Status s = tok.open(path, {.hash_comments = false}); !s) return s;
+    if (Status s = read_ply_header(tok, header); !s) return s;
+  }
   std::ifstream in(path, std::ios::binary);
   if (!in) return Status::not_found(fmt::format("cannot open '{}': {}", path, std::strerror(errno)));
-  Result<PlyHeader> header = read_ply_header(in, path);
-  if (!header) return header.status();
-  const std::string& format = header->format;
-  const bool ascii = format == "ascii";
-  const bool big = format == "binary_big_endian";
-  if (!ascii && !big && format != "binary_little_endian")
-    return Status::corruption(fmt::format("{}: unknown PLY format '{}'", path, format));
-  const bool swap = big == (std::endian::native == std::endian::little);
+  in.seekg(static_cast<std::streamoff>(header.body_offset));
 
   Aabb box;
-  for (const PlyElement& e : header->elements) {
+  for (const PlyElement& e : header.elements) {
     const bool is_vertex = e.name == "vertex";
-    Result<PlyRecord> rec = ply_record(e, path);
-    if (!rec) return rec.status();
-    if (is_vertex && (rec->ix < 0 || rec->iy < 0 || rec->iz < 0))
+    const PlyRecord rec = ply_record(e);
+    if (is_vertex && (rec.ix < 0 || rec.iy < 0 || rec.iz < 0))
       return Status::corruption(fmt::format("{}: vertex element lacks x, y or z", path));
-    if (ascii) {
+    if (header.ascii) {
       if (is_vertex) {
-        if (Status st = scan_ascii_vertices(in, e, *rec, path, box); !st) return st;
+        if (Status st = scan_ascii_vertices(in, e, rec, path, box); !st) return st;
         return box;
       }
       std::string line;
-      for (uint64_t r = 0; r < e.count; ++r) {
+      for (int64_t r = 0; r < e.count; ++r) {
         if (!std::getline(in, line))
           return Status::corruption(fmt::format("{}: truncated PLY ({} {} expected)", path, e.count, e.name));
       }
       continue;
     }
-    if (!rec->fixed) {
+    if (!rec.fixed) {
       if (is_vertex) return Status::unsupported(fmt::format("{}: list property in the vertex element", path));
       return Status::unsupported(fmt::format("{}: element '{}' with lists precedes the vertices", path, e.name));
     }
     if (!is_vertex) {
-      in.seekg(static_cast<std::streamoff>(rec->size * e.count), std::ios::cur);
+      in.seekg(static_cast<std::streamoff>(rec.size * static_cast<uint64_t>(e.count)), std::ios::cur);
       continue;
     }
-    if (Status st = scan_binary_vertices(in, e, *rec, swap, path, box); !st) return st;
+    if (Status st = scan_binary_vertices(in, e, rec, header.swap, path, box); !st) return st;
     return box;
   }
   return Status::corruption(fmt::format("{}: no vertex element", path));

@@ -22,6 +22,7 @@
 #include <climits>
 #include <cmath>
 #include <condition_variable>
+#include <cstdio>
 #include <deque>
 #include <filesystem>
 #include <memory>
@@ -230,6 +231,7 @@ class StoreBuilder {
   Result<BuildReport> run() {
     const auto start = std::chrono::steady_clock::now();
     if (Status s = check_options(); !s) return s;
+    if (Status s = check_inputs(); !s) return s;
     if (Status s = read_portals(); !s) return s;
     auto temp = TempDir::create(options_.output);
     if (!temp) return temp.status();
@@ -294,6 +296,25 @@ class StoreBuilder {
     return Status::ok();
   }
 
+  // Every input opens as a model (a file, not a directory; a known extension; a sound header)
+  // before anything is made on disk: NotFound or Corruption naming the file, exit 1.
+  Status check_inputs() const {
+    for (const std::string& in : options_.inputs) {
+      if (auto reader = open_scene_reader(in); !reader) return reader.status();
+    }
+    return Status::ok();
+  }
+
+  // The first pass hands each input's new warnings (scene_reader.h) to stderr and the report,
+  // so each is told once although binary inputs are parsed twice.
+  void report_warnings(const SceneReader& reader, size_t& reported) {
+    const std::vector<std::string>& w = reader.warnings();
+    for (; reported < w.size(); ++reported) {
+      std::fprintf(stderr, "warning: %s\n", w[reported].c_str());
+      report_.warnings.push_back(w[reported]);
+    }
+  }
+
   // The cells and portals of the single input's sidecar, kept serialized until the end. Rooms
   // and portals describe one model: with several inputs the store is no longer that model.
   Status read_portals() {
@@ -353,6 +374,11 @@ class StoreBuilder {
         });
     if (!read) return read;
     progress.finish();
+    if (report_.primitives == 0) {
+      std::string inputs;
+      for (const std::string& in : options_.inputs) inputs += (inputs.empty() ? "" : ", ") + in;
+      return no_primitives_error(inputs, report_.input_primitives);
+    }
     if (!reparse_) {
       if (Status s = out.close(); !s) return s;
       report_.spill_bytes += out.bytes();
@@ -386,6 +412,8 @@ class StoreBuilder {
       auto opened = open_scene_reader(in);
       if (!opened) return opened.status();
       SceneReader& reader = **opened;
+      size_t warned = 0;
+      if (first) report_warnings(reader, warned);
       // Each input's materials follow the previous inputs' (the first pass appends them).
       if (first) material_bases_.push_back(static_cast<uint32_t>(info_.materials.size()));
       const uint32_t material_base = material_bases_[k];
@@ -393,7 +421,10 @@ class StoreBuilder {
       uint64_t local = 0, last_bytes = 0;
       for (;;) {
         bool end = false;
-        if (Status s = reader.next(prim, end); !s) return s;
+        if (Status s = reader.next(prim, end); !s) {
+          if (first) report_warnings(reader, warned);
+          return s;
+        }
         if (!end) {
           if (source_base + local >= UINT32_MAX) {
             return Status::unsupported(fmt::format("{}: more than {} primitives in all inputs", in, UINT32_MAX - 1));
@@ -417,6 +448,9 @@ class StoreBuilder {
       }
       source_base += local;
       if (!first) continue;
+      report_warnings(reader, warned);
+      // One rule for every format: a file with nothing in it is bad input, not an empty store.
+      if (local == 0) return no_primitives_error(in, 0);
       const SceneHeader& h = reader.header();
       info_.materials.insert(info_.materials.end(), h.materials.begin(), h.materials.end());
       if (info_.materials.size() == material_base) info_.materials.emplace_back();  // meshes: one default

@@ -93,6 +93,7 @@ struct BuildReport {
   std::string portals_sidecar;          // the sidecar the portals section came from (empty: none)
   uint64_t portal_rooms = 0;
   uint64_t portals = 0;
+  std::vector<std::string> warnings;    // what the readers read past (also printed on stderr)
   double seconds = 0.0;
   double ingest_seconds = 0.0, spill_seconds = 0.0, build_seconds = 0.0, encode_seconds = 0.0;
 };

@@ -30,17 +30,20 @@ bool sidecar_says_walkable(const std::string& input) {
 int main(int argc, char** argv) {
   frontier::tune_allocator_for_build();
   CLI::App app{
-      "frontier-build: stream PLY/OBJ/OFF/NFF models into one paged, compressed, checksummed k-d tree store.\n"
+      "frontier-build: stream PLY/OBJ/OFF/NFF/STL models into one paged, compressed, checksummed k-d tree store.\n"
       "Memory stays within --memory (plus buffers): parts of the model that do not fit are split on disk\n"
       "first. The store appears atomically (OUT.tmp, fsync, rename); a failed build leaves no OUT.\n"
       "A single input with a frontier-gen sidecar (MODEL.json beside MODEL) that lists rooms and portals\n"
-      "also stores that cells-and-portals graph (section \"portals\", for frontier-view --visibility portals).",
+      "also stores that cells-and-portals graph (section \"portals\", for frontier-view --visibility portals).\n"
+      "Exit status: 0 ok; 1 bad input (a missing or unreadable file, a malformed model or one with no\n"
+      "primitives: the message names the file and line or byte offset) or a failed write; 2 bad options.",
       "frontier-build"};
   frontier::BuildOptions options;
   std::string memory = "1G", codec = "draco";
-  app.add_option("inputs", options.inputs, "model files (.ply .obj .off .nff); several go into one store")
-      ->required()
-      ->check(CLI::ExistingFile);
+  // Inputs are checked by build_store (exit 1 naming the file), not by CLI11 (whose exit codes
+  // are its own).
+  app.add_option("inputs", options.inputs, "model files (.ply .obj .off .nff .stl); several go into one store")
+      ->required();
   app.add_option("-o,--output", options.output, "the store file to write")->required();
   app.add_option("--memory", memory, "memory budget for the build, e.g. 512M, 1G (default 1G)");
   app.add_option("--codec", codec, "cell page codec: draco (default) or raw (exact doubles)")
@@ -67,7 +70,12 @@ int main(int argc, char** argv) {
   app.add_option("--walk-radius", options.walk_radius,
                  "walker clearance the collision grid must resolve (default 0.25, model units)");
   app.add_flag("-q,--quiet", options.quiet, "no progress output");
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int code = app.exit(e);  // prints the help, or the error and a hint
+    return code == 0 ? 0 : 2;
+  }
 
   const auto bytes = frontier::parse_byte_size(memory);
   if (!bytes) {

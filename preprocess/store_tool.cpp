@@ -169,7 +169,10 @@ int verify(const std::string& path, bool quiet) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"frontier-store: inspect and check frontier store files (layout: store/FORMAT.md)", "frontier-store"};
+  CLI::App app{"frontier-store: inspect and check frontier store files (layout: store/FORMAT.md).\n"
+               "Exit status: 0 ok; 1 a bad store (missing, unreadable or corrupt: the message names the file\n"
+               "and the page or byte); 2 bad options.",
+               "frontier-store"};
   app.require_subcommand(1);
   std::string path;
   bool quiet = false;
@@ -180,7 +183,12 @@ int main(int argc, char** argv) {
       "verify", "check every checksum and structural invariant and decode every page (cells and collision bricks); exit 1 naming the first bad one");
   verify_cmd->add_option("file", path, "store file")->required();
   verify_cmd->add_flag("-q,--quiet", quiet, "print nothing when the store is good");
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int code = app.exit(e);  // prints the help, or the error and a hint
+    return code == 0 ? 0 : 2;  // bad options: 2, as README says (CLI11's own codes are 100+)
+  }
   if (info_cmd->parsed()) return info(path);
   return verify(path, quiet);
 }

@@ -13,6 +13,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 namespace frontier {
 namespace {
@@ -83,7 +84,13 @@ void SceneBuilder::add_polygon(const InputPrimitive& p, uint32_t source) {
   for (const auto& t : triangles_) add_triangle(p, t[0], t[1], t[2], source);
 }
 
-Status load_scene(const std::string& path, Scene& scene) {
+Status no_primitives_error(const std::string& path, uint64_t input_primitives) {
+  if (input_primitives == 0) return Status::corruption(fmt::format("{}: the model has no primitives", path));
+  return Status::corruption(fmt::format("{}: the model has no primitives left: all {} are degenerate (no area)",
+                                        path, input_primitives));
+}
+
+Status load_scene(const std::string& path, Scene& scene, std::vector<std::string>* warnings) {
   scene = Scene{};
   auto opened = open_scene_reader(path);
   if (!opened) return opened.status();
@@ -97,17 +104,28 @@ Status load_scene(const std::string& path, Scene& scene) {
   SceneBuilder builder(scene);
   InputPrimitive prim;
   uint64_t count = 0;
+  Status s;
   for (;;) {
     bool end = false;
-    Status s = reader.next(prim, end);
-    if (!s) return s;
-    if (end) break;
+    s = reader.next(prim, end);
+    if (!s || end) break;
     if (count == UINT32_MAX) {
-      return Status::unsupported(fmt::format("{}: more than {} primitives", path, UINT32_MAX - 1));
+      s = Status::unsupported(fmt::format("{}: more than {} primitives", path, UINT32_MAX - 1));
+      break;
     }
     builder.add(prim, static_cast<uint32_t>(count));
     ++count;
   }
+  // Also when reading failed: a skipped header line may explain the error.
+  for (const std::string& w : reader.warnings()) {
+    if (warnings != nullptr) {
+      warnings->push_back(w);
+    } else {
+      std::fprintf(stderr, "warning: %s\n", w.c_str());
+    }
+  }
+  if (!s) return s;
+  if (scene.size() == 0) return no_primitives_error(path, count);
   const SceneHeader& h = reader.header();
   scene.materials = h.materials;
   if (scene.materials.empty()) scene.materials.emplace_back();

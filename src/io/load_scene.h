@@ -16,10 +16,17 @@
 
 namespace frontier {
 
-// Reads a model file (NFF, PLY, OBJ, OFF by extension) into memory through the streaming
+// Reads a model file (NFF, PLY, OBJ, OFF, STL by extension) into memory through the streaming
 // readers. Polygons are triangulated (concave ones correctly); zero-area triangles are dropped
-// and counted in Scene::degenerate_dropped. Errors name the file and line or byte offset.
-Status load_scene(const std::string& path, Scene& scene);
+// and counted in Scene::degenerate_dropped. Errors name the file and line or byte offset. A
+// file with no primitives, or none left once degenerate ones are dropped, is an error too
+// (no_primitives_error). The reader's warnings go to `warnings` when given, else to stderr.
+Status load_scene(const std::string& path, Scene& scene, std::vector<std::string>* warnings = nullptr);
+
+// The error for a model that holds nothing to build or draw: bad input (Corruption) for
+// frontier-build and frontier-view alike. `input_primitives` is what the file holds; when it is
+// not 0 they were all degenerate.
+Status no_primitives_error(const std::string& path, uint64_t input_primitives);
 
 // Adds input primitives to a Scene the way load_scene does: polygons triangulated, degenerate
 // primitives dropped and counted in Scene::degenerate_dropped. The out-of-core builder uses it

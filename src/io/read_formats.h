@@ -3,6 +3,7 @@
 #pragma once
 
 #include "src/io/scene_reader.h"
+#include "src/io/text_tokenizer.h"
 
 #include <cstdint>
 #include <memory>
@@ -27,13 +28,19 @@ class FormatReader : public SceneReader {
     return status_;
   }
   const SceneHeader& header() const final { return header_; }
+  const std::vector<std::string>& warnings() const final { return warnings_; }
 
  protected:
   virtual Status read_next(InputPrimitive& out, bool& end) = 0;
+  void warn(std::string message) { warnings_.push_back(std::move(message)); }
+  // Call once, after the last record of a text file: warns when anything but blanks (and
+  // comments, where the format has them) is left.
+  void warn_trailing_text(TextTokenizer& tok);
   SceneHeader header_;
 
  private:
   Status status_;
+  std::vector<std::string> warnings_;
 };
 
 // Constructs a reader and opens `path` with its `Status open(const std::string&)`.
@@ -48,9 +55,13 @@ Result<std::unique_ptr<SceneReader>> open_nff_reader(const std::string& path);
 Result<std::unique_ptr<SceneReader>> open_ply_reader(const std::string& path);
 Result<std::unique_ptr<SceneReader>> open_obj_reader(const std::string& path);
 Result<std::unique_ptr<SceneReader>> open_off_reader(const std::string& path);
+Result<std::unique_ptr<SceneReader>> open_stl_reader(const std::string& path);
 
 // "path: byte N: message" as a Corruption status (binary formats).
 Status byte_error(const std::string& path, uint64_t offset, std::string_view message);
+
+// The warning about `bytes` bytes after the last record, from `offset` to the end of the file.
+std::string trailing_data_warning(const std::string& path, uint64_t offset, uint64_t bytes);
 
 // Validates a polygon vertex count read from a file: at least 3, at most kMaxPolygonVertices.
 // Returns an empty string when fine, else the complaint ("face has 2 vertices (needs 3)").

@@ -4,6 +4,7 @@
 // 3D and are refused. `#` comments are allowed anywhere.
 //
 // Keeps the vertex positions (faces may refer to any vertex); faces are handed out one by one.
+// Anything but blanks and comments after the last face is ignored with a warning.
 #include "src/io/read_formats.h"
 #include "src/io/text_tokenizer.h"
 
@@ -32,6 +33,7 @@ class OffReader final : public FormatReader {
   int64_t face_count_ = 0;
   int64_t faces_read_ = 0;
   bool vertices_read_ = false;
+  bool finished_ = false;  // the end was reported (and trailing data looked for)
   std::vector<Vec3> positions_;
   std::vector<Vec3> normals_;
 };
@@ -104,6 +106,8 @@ Status OffReader::read_next(InputPrimitive& out, bool& end) {
     if (!s) return s;
   }
   if (faces_read_ == face_count_) {
+    if (!finished_) warn_trailing_text(tok_);
+    finished_ = true;
     end = true;
     return Status::ok();
   }

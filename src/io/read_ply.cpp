@@ -1,7 +1,7 @@
 // PLY reader: ascii, binary_little_endian and binary_big_endian.
 //
-// The header is parsed with the text tokenizer (errors name its lines). The body is walked
-// element by element in file order:
+// The header is parsed by read_ply_header (ply_header.h: unknown header lines are skipped with
+// a warning). The body is walked element by element in file order:
 //   - `vertex`: x, y, z of any numeric type, optional nx, ny, nz, other properties (lists too)
 //     skipped. In binary files with fixed-size vertex records the vertex section is mapped
 //     read-only and indexed in place; otherwise the positions are kept in a vector.
@@ -11,16 +11,18 @@
 //     the alternating winding) is its own polygon. Triangles that repeat a vertex are the
 //     strip's stitching, not surface, and are skipped.
 //   - anything else is skipped (binary: by size, walking lists).
-// Binary errors name byte offsets. Counts are checked against the bytes left in the file
-// before anything is allocated for them, so a garbled count fails cleanly.
+// ASCII records are one line each; errors name the line of the record. Binary errors name byte
+// offsets (a bad list count: where its record starts). Counts are checked against the bytes
+// left in the file before anything is allocated for them, so a garbled count fails cleanly.
+// Data after the last element (beyond blanks, in ASCII) is ignored with a warning.
+#include "src/io/binary_stream.h"
+#include "src/io/ply_header.h"
 #include "src/io/read_formats.h"
 #include "src/io/text_tokenizer.h"
 
 #include <fmt/format.h>
 
 #include <array>
-#include <bit>
-#include <cerrno>
 #include <cstring>
 #include <type_traits>
 
@@ -30,97 +32,13 @@
 namespace frontier {
 namespace {
 
-enum class PlyType : uint8_t { Int8, UInt8, Int16, UInt16, Int32, UInt32, Float32, Float64 };
-
-bool parse_ply_type(std::string_view s, PlyType& t) {
-  struct Name {
-    std::string_view name;
-    PlyType type;
-  };
-  static constexpr std::array<Name, 16> kNames = {{
-      {"char", PlyType::Int8},     {"int8", PlyType::Int8},       {"uchar", PlyType::UInt8},
-      {"uint8", PlyType::UInt8},   {"short", PlyType::Int16},     {"int16", PlyType::Int16},
-      {"ushort", PlyType::UInt16}, {"uint16", PlyType::UInt16},   {"int", PlyType::Int32},
-      {"int32", PlyType::Int32},   {"uint", PlyType::UInt32},     {"uint32", PlyType::UInt32},
-      {"float", PlyType::Float32}, {"float32", PlyType::Float32}, {"double", PlyType::Float64},
-      {"float64", PlyType::Float64},
-  }};
-  for (const Name& n : kNames) {
-    if (n.name == s) {
-      t = n.type;
-      return true;
-    }
-  }
-  return false;
-}
-
-constexpr size_t size_of(PlyType t) {
-  switch (t) {
-    case PlyType::Int8: case PlyType::UInt8: return 1;
-    case PlyType::Int16: case PlyType::UInt16: return 2;
-    case PlyType::Int32: case PlyType::UInt32: case PlyType::Float32: return 4;
-    case PlyType::Float64: return 8;
-  }
-  return 1;
-}
-
-constexpr bool is_integer(PlyType t) { return t != PlyType::Float32 && t != PlyType::Float64; }
-
-template <typename T>
-inline T load(const uint8_t* p, bool swap) {
-  T v;
-  std::memcpy(&v, p, sizeof(T));
-  if constexpr (sizeof(T) > 1) {
-    if (swap) {
-      if constexpr (sizeof(T) == 2) {
-        uint16_t u;
-        std::memcpy(&u, &v, 2);
-        u = __builtin_bswap16(u);
-        std::memcpy(&v, &u, 2);
-      } else if constexpr (sizeof(T) == 4) {
-        uint32_t u;
-        std::memcpy(&u, &v, 4);
-        u = __builtin_bswap32(u);
-        std::memcpy(&v, &u, 4);
-      } else {
-        uint64_t u;
-        std::memcpy(&u, &v, 8);
-        u = __builtin_bswap64(u);
-        std::memcpy(&v, &u, 8);
-      }
-    }
-  }
-  return v;
-}
-
-// Calls f(T{}) with T the C++ type of PLY type t: the one switch over types that the
-// decoders below share.
-template <typename F>
-inline decltype(auto) with_ply_type(PlyType t, F&& f) {
-  switch (t) {
-    case PlyType::Int8: return f(int8_t{});
-    case PlyType::UInt8: return f(uint8_t{});
-    case PlyType::Int16: return f(int16_t{});
-    case PlyType::UInt16: return f(uint16_t{});
-    case PlyType::Int32: return f(int32_t{});
-    case PlyType::UInt32: return f(uint32_t{});
-    case PlyType::Float32: return f(float{});
-    case PlyType::Float64: break;
-  }
-  return f(double{});
-}
-
-inline double decode_double(const uint8_t* p, PlyType t, bool swap) {
-  return with_ply_type(t, [&](auto type) -> double { return load<decltype(type)>(p, swap); });
-}
-
 // Decodes `count` indices of type T, each below `limit` (strips also take -1, as a signed
 // value or as 0xffffffff, and store it as UINT32_MAX). On a bad index returns false with it.
 template <typename T>
 bool decode_indices_as(const uint8_t* q, size_t count, bool swap, uint32_t limit, bool strip,
                        uint32_t* out, int64_t& bad) {
   for (size_t j = 0; j < count; ++j) {
-    const auto index = static_cast<int64_t>(load<T>(q + j * sizeof(T), swap));
+    const auto index = static_cast<int64_t>(load_scalar<T>(q + j * sizeof(T), swap));
     if (static_cast<uint64_t>(index) < limit) {
       out[j] = static_cast<uint32_t>(index);
     } else if (strip && (index == -1 || (sizeof(T) == 4 && index == int64_t{UINT32_MAX}))) {
@@ -146,123 +64,11 @@ bool decode_indices(const uint8_t* q, PlyType type, size_t count, bool swap, uin
   });
 }
 
-// Integer types only (0 for the others).
-inline int64_t decode_int(const uint8_t* p, PlyType t, bool swap) {
-  return with_ply_type(t, [&](auto type) -> int64_t {
-    using T = decltype(type);
-    if constexpr (std::is_integral_v<T>) {
-      return load<T>(p, swap);
-    } else {
-      return 0;
-    }
-  });
-}
-
-struct PlyProperty {
-  std::string name;
-  PlyType type = PlyType::Float32;  // item type for lists
-  bool is_list = false;
-  PlyType count_type = PlyType::UInt8;
-};
-
-struct PlyElement {
+// A PLY element as the reader walks it: its declaration and what the reader takes from it.
+struct Element : PlyElement {
   enum class Role { Other, Vertex, Face, Strip };
-  std::string name;
-  int64_t count = 0;
-  int64_t line = 0;  // header line, for errors about the declaration
-  std::vector<PlyProperty> props;
   Role role = Role::Other;
   int index_prop = -1;  // Face/Strip: the vertex_indices list
-
-  // Bytes of one binary record, or -1 when it holds a list.
-  int64_t fixed_size() const {
-    int64_t n = 0;
-    for (const PlyProperty& p : props) {
-      if (p.is_list) return -1;
-      n += static_cast<int64_t>(size_of(p.type));
-    }
-    return n;
-  }
-  // Fewest bytes one binary record can take (lists empty).
-  int64_t min_size() const {
-    int64_t n = 0;
-    for (const PlyProperty& p : props) n += static_cast<int64_t>(size_of(p.is_list ? p.count_type : p.type));
-    return n;
-  }
-};
-
-// Buffered sequential reads of the binary body at explicit file offsets (pread), 1 MiB at a
-// time. take(n) hands out n contiguous bytes (n <= kChunk).
-class BinaryStream {
- public:
-  static constexpr size_t kChunk = size_t{1} << 20;
-
-  void init(int fd, uint64_t offset, uint64_t file_size) {
-    fd_ = fd;
-    buffer_offset_ = offset;
-    file_size_ = file_size;
-    const uint64_t body = file_size > offset ? file_size - offset : 0;
-    capacity_ = static_cast<size_t>(std::min<uint64_t>(kChunk, body + 1));
-    buffer_ = std::make_unique<uint8_t[]>(capacity_);
-    pos_ = end_ = 0;
-  }
-  uint64_t offset() const { return buffer_offset_ + pos_; }
-  uint64_t remaining() const { return file_size_ > offset() ? file_size_ - offset() : 0; }
-  const Status& status() const { return status_; }
-
-  // Next n bytes, or nullptr when the file ends first (or a read fails: see status()).
-  const uint8_t* take(size_t n) {
-    if (end_ - pos_ < n && !fill(n)) return nullptr;
-    const uint8_t* p = buffer_.get() + pos_;
-    pos_ += n;
-    return p;
-  }
-  bool skip(uint64_t n) {
-    if (n <= end_ - pos_) {
-      pos_ += static_cast<size_t>(n);
-      return true;
-    }
-    if (n > remaining()) return false;
-    buffer_offset_ = offset() + n;
-    pos_ = end_ = 0;
-    return true;
-  }
-
- private:
-  bool fill(size_t n) {
-    if (n > capacity_) {
-      // Only possible when the body is smaller than n: the file ends first.
-      return false;
-    }
-    const size_t have = end_ - pos_;
-    std::memmove(buffer_.get(), buffer_.get() + pos_, have);
-    buffer_offset_ += pos_;
-    pos_ = 0;
-    end_ = have;
-    while (end_ < n) {
-      const uint64_t at = buffer_offset_ + end_;
-      if (at >= file_size_) return false;
-      const size_t want = static_cast<size_t>(std::min<uint64_t>(capacity_ - end_, file_size_ - at));
-      const ssize_t r = ::pread(fd_, buffer_.get() + end_, want, static_cast<off_t>(at));
-      if (r < 0 && errno == EINTR) continue;
-      if (r < 0) {
-        status_ = Status::io_error(fmt::format("byte {}: read failed: {}", at, std::strerror(errno)));
-        return false;
-      }
-      if (r == 0) return false;
-      end_ += static_cast<size_t>(r);
-    }
-    return true;
-  }
-
-  int fd_ = -1;
-  std::unique_ptr<uint8_t[]> buffer_;
-  size_t capacity_ = 0;
-  size_t pos_ = 0;
-  size_t end_ = 0;
-  uint64_t buffer_offset_ = 0;
-  uint64_t file_size_ = 0;
-  Status status_;
 };
 
 class PlyReader final : public FormatReader {
@@ -282,34 +88,51 @@ class PlyReader final : public FormatReader {
   uint64_t bytes_total() const override { return tok_.size(); }
 
  private:
-  Status parse_header();
   Status check_header();
   Status read_next(InputPrimitive& out, bool& end) override;
-  Status load_vertices(const PlyElement& e);
-  Status map_vertices(const PlyElement& e);
-  Status skip_element(const PlyElement& e);
-  Status read_index_list(const PlyElement& e, bool strip);
+  Status load_vertices(const Element& e);
+  Status map_vertices(const Element& e);
+  Status skip_element(const Element& e);
+  Status read_index_list(const Element& e, bool strip);
   Status emit_polygon(InputPrimitive& out);
   Status fetch(uint32_t i, Vec3& p, Vec3* n);
+  // Which of x y z nx ny nz (0..5) vertex property k is, or -1.
+  int vertex_field(size_t k) const;
+  static std::string list_size_problem(int64_t n, bool strip);
+  std::string index_problem(int64_t index, bool strip) const;
+  void split_strip();
+  // After the last element: a warning about data left in the file (once).
+  void warn_trailing();
 
-  // Ascii helpers.
-  Status skip_ascii_record(const PlyElement& e);
+  // ASCII records are one line each, as the PLY format writes them: a record's first value may
+  // follow blank lines, the others must be on its line and none may follow its last, so a bad
+  // list count is reported on the line of its record (not where the misread file ends).
+  Status ascii_token(std::string_view& t, bool first, std::string_view what);
+  Status ascii_int(int64_t& n, bool first, std::string_view what);
+  Status ascii_list_overrun(const PlyProperty& p, int64_t n, int64_t items) const;
+  Status end_ascii_record(const Element& e);
+  Status read_ascii_indices(const Element& e, bool strip);
+  Status read_ascii_vertex(const Element& e, std::array<double, 6>& v);
+  Status skip_ascii_record(const Element& e);
   // One property of an ASCII record: a scalar, or a list's count and items.
-  Status skip_ascii_property(const PlyProperty& p);
-  // Binary helpers.
+  Status skip_ascii_property(const PlyProperty& p, bool first);
+  // Binary helpers. Errors about a record name the byte offset where it starts.
   Status binary_truncated(std::string_view what) const {
     if (!stream_.status().is_ok()) return Status::io_error(path_ + ": " + stream_.status().message());
     return byte_error(path_, stream_.offset(), fmt::format("truncated {}", what));
   }
-  Status skip_binary_record(const PlyElement& e);
-  Status skip_binary_record_property(const PlyProperty& p);
+  Status binary_list_overrun(const PlyProperty& p, int64_t n, uint64_t record_at) const;
+  Status read_binary_indices(const Element& e, bool strip);
+  Status read_binary_vertex(const Element& e, int64_t r, std::array<double, 6>& v);
+  Status skip_binary_record(const Element& e);
+  Status skip_binary_record_property(const PlyProperty& p, uint64_t record_at);
 
   std::string path_;
   TextTokenizer tok_;  // header, and the body of ascii files
   BinaryStream stream_;
   bool ascii_ = true;
   bool swap_ = false;  // binary byte order differs from the host's
-  std::vector<PlyElement> elements_;
+  std::vector<Element> elements_;
   int64_t declared_ = 0;
   uint64_t body_offset_ = 0;
 
@@ -336,6 +159,7 @@ class PlyReader final : public FormatReader {
   uint64_t record_offset_ = 0;                       // binary: where the current record starts
   std::vector<std::array<uint32_t, 3>> strip_tris_;  // triangles of the current strip
   size_t strip_next_ = 0;
+  bool finished_ = false;  // the end was reported (and trailing data looked for)
 };
 
 Status PlyReader::open(const std::string& path) {
@@ -343,93 +167,23 @@ Status PlyReader::open(const std::string& path) {
   header_.materials.emplace_back();
   Status s = tok_.open(path, {.hash_comments = false});
   if (!s) return s;
-  s = parse_header();
+  PlyHeader header;
+  s = read_ply_header(tok_, header);
+  for (std::string& w : header.warnings) warn(std::move(w));
   if (!s) return s;
+  ascii_ = header.ascii;
+  swap_ = header.swap;
+  body_offset_ = header.body_offset;
+  for (PlyElement& e : header.elements) elements_.push_back(Element{std::move(e)});
   if (!ascii_) stream_.init(tok_.fd(), body_offset_, tok_.size());
   return check_header();
-}
-
-Status PlyReader::parse_header() {
-  std::string_view t;
-  if (!tok_.next(t) || t != "ply") {
-    if (!tok_.status().is_ok()) return tok_.status();
-    return tok_.error("not a PLY file (no 'ply' magic)");
-  }
-  tok_.skip_line();
-  bool have_format = false;
-  for (;;) {
-    if (!tok_.next(t)) return tok_.end_error("end_header");
-    if (t == "end_header") {
-      tok_.skip_line();
-      break;
-    }
-    if (t == "comment" || t == "obj_info") {
-      tok_.skip_line();
-      continue;
-    }
-    if (t == "format") {
-      std::string_view f, version;
-      if (!tok_.next_on_line(f) || !tok_.next_on_line(version)) return tok_.error("format line needs a type and a version");
-      if (f == "ascii") {
-        ascii_ = true;
-      } else if (f == "binary_little_endian" || f == "binary_big_endian") {
-        ascii_ = false;
-        const bool file_big = f == "binary_big_endian";
-        swap_ = file_big != (std::endian::native == std::endian::big);
-      } else {
-        return tok_.error(fmt::format("unknown format {}", quote_token(f)));
-      }
-      if (version != "1.0" && version != "1") {
-        return tok_.error(fmt::format("unsupported PLY version {}", quote_token(version)));
-      }
-      have_format = true;
-    } else if (t == "element") {
-      PlyElement e;
-      std::string_view name;
-      if (!tok_.next_on_line(name)) return tok_.error("element needs a name and a count");
-      e.name = std::string(name);
-      e.line = tok_.line();
-      Status s = tok_.next_int_on_line(e.count, "element count");
-      if (!s) return s;
-      if (e.count < 0) return tok_.error(fmt::format("element {} has a negative count {}", e.name, e.count));
-      elements_.push_back(std::move(e));
-    } else if (t == "property") {
-      if (elements_.empty()) return tok_.error("property before any element");
-      PlyProperty p;
-      std::string_view type, name;
-      if (!tok_.next_on_line(type)) return tok_.error("property needs a type and a name");
-      if (type == "list") {
-        std::string_view count_type;
-        if (!tok_.next_on_line(count_type) || !tok_.next_on_line(type)) return tok_.error("list property needs two types and a name");
-        if (!parse_ply_type(count_type, p.count_type)) return tok_.error(fmt::format("unknown type {}", quote_token(count_type)));
-        if (!is_integer(p.count_type)) return tok_.error("list count type must be an integer type");
-        p.is_list = true;
-      }
-      if (!parse_ply_type(type, p.type)) return tok_.error(fmt::format("unknown type {}", quote_token(type)));
-      if (!tok_.next_on_line(name)) return tok_.error("property needs a name");
-      p.name = std::string(name);
-      elements_.back().props.push_back(std::move(p));
-    } else {
-      return tok_.error(fmt::format("unknown header keyword {}", quote_token(t)));
-    }
-    if (!tok_.at_line_end()) {
-      std::string_view extra;
-      tok_.next_on_line(extra);
-      return tok_.error(fmt::format("unexpected {} at the end of a header line", quote_token(extra)));
-    }
-    tok_.skip_line();
-  }
-  if (!tok_.status().is_ok()) return tok_.status();
-  if (!have_format) return tok_.error("header has no format line");
-  body_offset_ = tok_.offset();
-  return Status::ok();
 }
 
 Status PlyReader::check_header() {
   bool have_vertex = false, have_strips = false;
   int64_t faces = 0;
   uint64_t body_left = tok_.size() > body_offset_ ? tok_.size() - body_offset_ : 0;
-  for (PlyElement& e : elements_) {
+  for (Element& e : elements_) {
     const auto header_error = [&](std::string_view msg) {
       return Status::corruption(fmt::format("{}: line {}: {}", path_, e.line, msg));
     };
@@ -440,16 +194,11 @@ Status PlyReader::check_header() {
                                       e.name, e.count, body_left));
     }
     if (!ascii_) body_left -= static_cast<uint64_t>(min_record * e.count);
-    const auto find = [&](std::string_view name) {
-      for (size_t k = 0; k < e.props.size(); ++k) {
-        if (e.props[k].name == name) return static_cast<int>(k);
-      }
-      return -1;
-    };
+    const auto find = [&e](std::string_view name) { return e.find(name); };
     if (e.name == "vertex") {
       if (have_vertex) return header_error("second vertex element");
       have_vertex = true;
-      e.role = PlyElement::Role::Vertex;
+      e.role = Element::Role::Vertex;
       x_prop_ = find("x");
       y_prop_ = find("y");
       z_prop_ = find("z");
@@ -465,12 +214,12 @@ Status PlyReader::check_header() {
       vertex_count_ = static_cast<uint32_t>(e.count);
     } else if (e.name == "face" || e.name == "tristrips") {
       const bool strip = e.name == "tristrips";
-      e.role = strip ? PlyElement::Role::Strip : PlyElement::Role::Face;
+      e.role = strip ? Element::Role::Strip : Element::Role::Face;
       e.index_prop = find("vertex_indices");
       if (e.index_prop < 0 && !strip) e.index_prop = find("vertex_index");
       if (e.index_prop < 0) return header_error(fmt::format("{} element has no vertex_indices list", e.name));
       const PlyProperty& p = e.props[e.index_prop];
-      if (!p.is_list || !is_integer(p.type)) {
+      if (!p.is_list || !ply_is_integer(p.type)) {
         return header_error(fmt::format("{} must be a list of integers", p.name));
       }
       if (strip) {
@@ -492,25 +241,27 @@ Status PlyReader::read_next(InputPrimitive& out, bool& end) {
       return emit_polygon(out);
     }
     if (element_ >= elements_.size()) {
+      if (!finished_) warn_trailing();
+      finished_ = true;
       end = true;
       return Status::ok();
     }
-    const PlyElement& e = elements_[element_];
+    const Element& e = elements_[element_];
     switch (e.role) {
-      case PlyElement::Role::Vertex: {
+      case Element::Role::Vertex: {
         Status s = load_vertices(e);
         if (!s) return s;
         ++element_;
         continue;
       }
-      case PlyElement::Role::Other: {
+      case Element::Role::Other: {
         Status s = skip_element(e);
         if (!s) return s;
         ++element_;
         continue;
       }
-      case PlyElement::Role::Face:
-      case PlyElement::Role::Strip: {
+      case Element::Role::Face:
+      case Element::Role::Strip: {
         if (record_ >= e.count) {
           ++element_;
           record_ = 0;
@@ -520,7 +271,7 @@ Status PlyReader::read_next(InputPrimitive& out, bool& end) {
           return Status::unsupported(fmt::format("{}: line {}: element {} comes before the vertex element",
                                                  path_, e.line, e.name));
         }
-        const bool strip = e.role == PlyElement::Role::Strip;
+        const bool strip = e.role == Element::Role::Strip;
         Status s = read_index_list(e, strip);
         if (!s) return s;
         ++record_;
@@ -533,93 +284,100 @@ Status PlyReader::read_next(InputPrimitive& out, bool& end) {
 
 // Reads one face or strip record into indices_ (strips: then into strip_tris_), checking
 // every index against the vertex count.
-Status PlyReader::read_index_list(const PlyElement& e, bool strip) {
-  const auto index_error = [&](int64_t index) {
-    std::string msg = fmt::format("{} index {} out of range ({} vertices)", strip ? "strip" : "face", index, vertex_count_);
-    return ascii_ ? tok_.error(msg) : byte_error(path_, record_offset_, msg);
-  };
-  const auto size_error = [&](int64_t n) -> Status {
-    std::string bad = strip ? (n < 0 ? fmt::format("strip has a negative length {}", n) : std::string())
-                            : check_polygon_size(n, "face");
-    if (bad.empty()) return Status::ok();
-    return ascii_ ? tok_.error(bad) : byte_error(path_, record_offset_, bad);
-  };
-  if (ascii_) {
-    indices_.clear();
-    for (size_t k = 0; k < e.props.size(); ++k) {
-      const PlyProperty& p = e.props[k];
-      if (static_cast<int>(k) != e.index_prop) {
-        if (Status s = skip_ascii_property(p); !s) return s;
-        continue;
-      }
-      int64_t n = 0;
-      Status s = tok_.next_int(n, strip ? "strip length" : "face vertex count");
-      if (!s) return s;
-      s = size_error(n);
-      if (!s) return s;
-      for (int64_t j = 0; j < n; ++j) {
-        int64_t index = 0;
-        s = tok_.next_int(index, "vertex index");
-        if (!s) return s;
-        if (strip && index == -1) {
-          indices_.push_back(UINT32_MAX);
-          continue;
-        }
-        if (index < 0 || index >= static_cast<int64_t>(vertex_count_)) return index_error(index);
-        indices_.push_back(static_cast<uint32_t>(index));
-      }
+Status PlyReader::read_index_list(const Element& e, bool strip) {
+  Status s = ascii_ ? read_ascii_indices(e, strip) : read_binary_indices(e, strip);
+  if (s && strip) split_strip();
+  return s;
+}
+
+Status PlyReader::read_ascii_indices(const Element& e, bool strip) {
+  indices_.clear();
+  for (size_t k = 0; k < e.props.size(); ++k) {
+    const PlyProperty& p = e.props[k];
+    const bool first = k == 0;
+    if (static_cast<int>(k) != e.index_prop) {
+      if (Status s = skip_ascii_property(p, first); !s) return s;
+      continue;
     }
-  } else {
-    record_offset_ = stream_.offset();
-    for (size_t k = 0; k < e.props.size(); ++k) {
-      const PlyProperty& p = e.props[k];
-      if (static_cast<int>(k) != e.index_prop) {
-        Status s = skip_binary_record_property(p);
-        if (!s) return s;
+    int64_t n = 0;
+    if (Status s = ascii_int(n, first, strip ? "strip length" : "face vertex count"); !s) return s;
+    if (std::string bad = list_size_problem(n, strip); !bad.empty()) return tok_.error(bad);
+    for (int64_t j = 0; j < n; ++j) {
+      std::string_view t;
+      int64_t index = 0;
+      if (!tok_.next_on_line(t)) return ascii_list_overrun(p, n, j);
+      if (!parse_int(t, index)) return tok_.error(fmt::format("expected an integer (vertex index), got {}", quote_token(t)));
+      if (strip && index == -1) {
+        indices_.push_back(UINT32_MAX);
         continue;
       }
-      const uint8_t* c = stream_.take(size_of(p.count_type));
-      if (c == nullptr) return binary_truncated(strip ? "strip" : "face list");
-      const int64_t n = decode_int(c, p.count_type, swap_);
-      if (strip ? n < 0 : (n < 3 || n > kMaxPolygonVertices)) return size_error(n);
-      const size_t item = size_of(p.type);
-      if (static_cast<uint64_t>(n) * item > stream_.remaining()) return binary_truncated(strip ? "strip" : "face list");
-      indices_.resize(static_cast<size_t>(n));
-      size_t done = 0;
-      while (done < static_cast<size_t>(n)) {
-        const size_t batch = std::min<size_t>(static_cast<size_t>(n) - done, BinaryStream::kChunk / 8);
-        const uint8_t* q = stream_.take(batch * item);
-        if (q == nullptr) return binary_truncated(strip ? "strip" : "face list");
-        int64_t bad = 0;
-        if (!decode_indices(q, p.type, batch, swap_, vertex_count_, strip, indices_.data() + done, bad)) {
-          return index_error(bad);
-        }
-        done += batch;
-      }
+      if (index < 0 || index >= static_cast<int64_t>(vertex_count_)) return tok_.error(index_problem(index, strip));
+      indices_.push_back(static_cast<uint32_t>(index));
     }
   }
-  if (strip) {
-    strip_tris_.clear();
-    strip_next_ = 0;
-    size_t run = 0;  // vertices since the last restart
-    for (size_t j = 0; j < indices_.size(); ++j) {
-      if (indices_[j] == UINT32_MAX) {
-        run = 0;
-        continue;
+  return end_ascii_record(e);
+}
+
+Status PlyReader::read_binary_indices(const Element& e, bool strip) {
+  record_offset_ = stream_.offset();
+  for (size_t k = 0; k < e.props.size(); ++k) {
+    const PlyProperty& p = e.props[k];
+    if (static_cast<int>(k) != e.index_prop) {
+      if (Status s = skip_binary_record_property(p, record_offset_); !s) return s;
+      continue;
+    }
+    const uint8_t* c = stream_.take(ply_type_size(p.count_type));
+    if (c == nullptr) return binary_truncated(strip ? "strip" : "face list");
+    const int64_t n = ply_decode_int(c, p.count_type, swap_);
+    if (std::string bad = list_size_problem(n, strip); !bad.empty()) return byte_error(path_, record_offset_, bad);
+    const size_t item = ply_type_size(p.type);
+    if (static_cast<uint64_t>(n) * item > stream_.remaining()) return binary_list_overrun(p, n, record_offset_);
+    indices_.resize(static_cast<size_t>(n));
+    size_t done = 0;
+    while (done < static_cast<size_t>(n)) {
+      const size_t batch = std::min<size_t>(static_cast<size_t>(n) - done, BinaryStream::kChunk / 8);
+      const uint8_t* q = stream_.take(batch * item);
+      if (q == nullptr) return binary_truncated(strip ? "strip" : "face list");
+      int64_t bad = 0;
+      if (!decode_indices(q, p.type, batch, swap_, vertex_count_, strip, indices_.data() + done, bad)) {
+        return byte_error(path_, record_offset_, index_problem(bad, strip));
       }
-      ++run;
-      if (run < 3) continue;
-      const uint32_t a = indices_[j - 2], b = indices_[j - 1], c = indices_[j];
-      if (a == b || b == c || a == c) continue;
-      // Every other triangle of a strip is wound the other way round.
-      if ((run - 3) % 2 == 0) {
-        strip_tris_.push_back({a, b, c});
-      } else {
-        strip_tris_.push_back({b, a, c});
-      }
+      done += batch;
     }
   }
   return Status::ok();
+}
+
+// The triangles of the strip in indices_, into strip_tris_.
+void PlyReader::split_strip() {
+  strip_tris_.clear();
+  strip_next_ = 0;
+  size_t run = 0;  // vertices since the last restart
+  for (size_t j = 0; j < indices_.size(); ++j) {
+    if (indices_[j] == UINT32_MAX) {
+      run = 0;
+      continue;
+    }
+    ++run;
+    if (run < 3) continue;
+    const uint32_t a = indices_[j - 2], b = indices_[j - 1], c = indices_[j];
+    if (a == b || b == c || a == c) continue;
+    // Every other triangle of a strip is wound the other way round.
+    if ((run - 3) % 2 == 0) {
+      strip_tris_.push_back({a, b, c});
+    } else {
+      strip_tris_.push_back({b, a, c});
+    }
+  }
+}
+
+std::string PlyReader::list_size_problem(int64_t n, bool strip) {
+  if (!strip) return check_polygon_size(n, "face");
+  return n < 0 ? fmt::format("strip has a negative length {}", n) : std::string();
+}
+
+std::string PlyReader::index_problem(int64_t index, bool strip) const {
+  return fmt::format("{} index {} out of range ({} vertices)", strip ? "strip" : "face", index, vertex_count_);
 }
 
 Status PlyReader::emit_polygon(InputPrimitive& out) {
@@ -664,14 +422,14 @@ Status PlyReader::fetch(uint32_t i, Vec3& p, Vec3* n) {
     std::memcpy(&f[2], r + field_offset_[2], 4);
     p = Vec3(f[0], f[1], f[2]);
   } else {
-    for (int k = 0; k < 3; ++k) p[k] = decode_double(r + field_offset_[k], field_type_[k], swap_);
+    for (int k = 0; k < 3; ++k) p[k] = ply_decode_double(r + field_offset_[k], field_type_[k], swap_);
   }
   if (!all_finite(p)) {
     return byte_error(path_, vertex_file_offset_ + static_cast<uint64_t>(i) * vertex_stride_,
                       fmt::format("vertex {} coordinate is not finite", i));
   }
   if (n != nullptr) {
-    for (int k = 0; k < 3; ++k) (*n)[k] = decode_double(r + field_offset_[3 + k], field_type_[3 + k], swap_);
+    for (int k = 0; k < 3; ++k) (*n)[k] = ply_decode_double(r + field_offset_[3 + k], field_type_[3 + k], swap_);
     if (!all_finite(*n)) {
       return byte_error(path_, vertex_file_offset_ + static_cast<uint64_t>(i) * vertex_stride_,
                         fmt::format("vertex {} normal is not finite", i));
@@ -680,9 +438,7 @@ Status PlyReader::fetch(uint32_t i, Vec3& p, Vec3* n) {
   return Status::ok();
 }
 
-Status PlyReader::load_vertices(const PlyElement& e) {
-  const int fields[6] = {x_prop_, y_prop_, z_prop_, nx_prop_, ny_prop_, nz_prop_};
-  const int nfields = nx_prop_ >= 0 ? 6 : 3;
+Status PlyReader::load_vertices(const Element& e) {
   if (!ascii_ && e.fixed_size() > 0) {
     Status s = map_vertices(e);
     if (!s) return s;
@@ -692,60 +448,74 @@ Status PlyReader::load_vertices(const PlyElement& e) {
     }
     // The mapping failed: fall back to reading the records.
   }
+  const bool with_normals = nx_prop_ >= 0;
   positions_.reserve(static_cast<size_t>(e.count));
-  if (nfields == 6) normals_.reserve(static_cast<size_t>(e.count));
+  if (with_normals) normals_.reserve(static_cast<size_t>(e.count));
   std::array<double, 6> v{};
   for (int64_t r = 0; r < e.count; ++r) {
-    if (ascii_) {
-      for (size_t k = 0; k < e.props.size(); ++k) {
-        const PlyProperty& p = e.props[k];
-        if (p.is_list) {
-          if (Status s = skip_ascii_property(p); !s) return s;
-          continue;
-        }
-        int f = 0;
-        while (f < nfields && fields[f] != static_cast<int>(k)) ++f;
-        if (f < nfields) {
-          Status s = tok_.next_double(v[f], f < 3 ? "coordinate" : "normal coordinate");
-          if (!s) return s;
-          continue;
-        }
-        // Other properties must be numbers, but may be NaN (scanner confidence and the like).
-        std::string_view t;
-        double value = 0.0;
-        bool finite = true;
-        if (!tok_.next(t)) return tok_.end_error(p.name);
-        if (!parse_double(t, value, finite)) {
-          return tok_.error(fmt::format("expected a number ({}), got {}", p.name, quote_token(t)));
-        }
-      }
-    } else {
-      const uint64_t at = stream_.offset();
-      for (size_t k = 0; k < e.props.size(); ++k) {
-        const PlyProperty& p = e.props[k];
-        if (p.is_list) {
-          Status s = skip_binary_record_property(p);
-          if (!s) return s;
-          continue;
-        }
-        const uint8_t* q = stream_.take(size_of(p.type));
-        if (q == nullptr) return binary_truncated("vertex");
-        int f = 0;
-        while (f < nfields && fields[f] != static_cast<int>(k)) ++f;
-        if (f < nfields) v[f] = decode_double(q, p.type, swap_);
-      }
-      if (!all_finite(Vec3(v[0], v[1], v[2])) || !all_finite(Vec3(v[3], v[4], v[5]))) {
-        return byte_error(path_, at, fmt::format("vertex {} coordinate is not finite", r));
-      }
-    }
+    Status s = ascii_ ? read_ascii_vertex(e, v) : read_binary_vertex(e, r, v);
+    if (!s) return s;
     positions_.emplace_back(v[0], v[1], v[2]);
-    if (nfields == 6) normals_.emplace_back(v[3], v[4], v[5]);
+    if (with_normals) normals_.emplace_back(v[3], v[4], v[5]);
   }
   vertices_ready_ = true;
   return Status::ok();
 }
 
-Status PlyReader::map_vertices(const PlyElement& e) {
+int PlyReader::vertex_field(size_t k) const {
+  const int fields[6] = {x_prop_, y_prop_, z_prop_, nx_prop_, ny_prop_, nz_prop_};
+  const int nfields = nx_prop_ >= 0 ? 6 : 3;
+  for (int f = 0; f < nfields; ++f) {
+    if (fields[f] == static_cast<int>(k)) return f;
+  }
+  return -1;
+}
+
+Status PlyReader::read_ascii_vertex(const Element& e, std::array<double, 6>& v) {
+  for (size_t k = 0; k < e.props.size(); ++k) {
+    const PlyProperty& p = e.props[k];
+    const bool first = k == 0;
+    if (p.is_list) {
+      if (Status s = skip_ascii_property(p, first); !s) return s;
+      continue;
+    }
+    if (const int f = vertex_field(k); f >= 0) {
+      const std::string_view what = f < 3 ? "coordinate" : "normal coordinate";
+      Status s = first ? tok_.next_double(v[f], what) : tok_.next_double_on_line(v[f], what);
+      if (!s) return s;
+      continue;
+    }
+    // Other properties must be numbers, but may be NaN (scanner confidence and the like).
+    std::string_view t;
+    double value = 0.0;
+    bool finite = true;
+    if (Status s = ascii_token(t, first, p.name); !s) return s;
+    if (!parse_double(t, value, finite)) {
+      return tok_.error(fmt::format("expected a number ({}), got {}", p.name, quote_token(t)));
+    }
+  }
+  return end_ascii_record(e);
+}
+
+Status PlyReader::read_binary_vertex(const Element& e, int64_t r, std::array<double, 6>& v) {
+  const uint64_t at = stream_.offset();
+  for (size_t k = 0; k < e.props.size(); ++k) {
+    const PlyProperty& p = e.props[k];
+    if (p.is_list) {
+      if (Status s = skip_binary_record_property(p, at); !s) return s;
+      continue;
+    }
+    const uint8_t* q = stream_.take(ply_type_size(p.type));
+    if (q == nullptr) return binary_truncated("vertex");
+    if (const int f = vertex_field(k); f >= 0) v[f] = ply_decode_double(q, p.type, swap_);
+  }
+  if (!all_finite(Vec3(v[0], v[1], v[2])) || !all_finite(Vec3(v[3], v[4], v[5]))) {
+    return byte_error(path_, at, fmt::format("vertex {} coordinate is not finite", r));
+  }
+  return Status::ok();
+}
+
+Status PlyReader::map_vertices(const Element& e) {
   const auto stride = static_cast<size_t>(e.fixed_size());
   const uint64_t start = stream_.offset();
   const uint64_t bytes = static_cast<uint64_t>(e.count) * stride;
@@ -771,7 +541,7 @@ Status PlyReader::map_vertices(const PlyElement& e) {
   std::vector<size_t> offsets(e.props.size());
   for (size_t k = 0; k < e.props.size(); ++k) {
     offsets[k] = offset;
-    offset += size_of(e.props[k].type);
+    offset += ply_type_size(e.props[k].type);
   }
   const int fields[6] = {x_prop_, y_prop_, z_prop_, nx_prop_, ny_prop_, nz_prop_};
   for (int f = 0; f < 6; ++f) {
@@ -785,7 +555,7 @@ Status PlyReader::map_vertices(const PlyElement& e) {
   return Status::ok();
 }
 
-Status PlyReader::skip_element(const PlyElement& e) {
+Status PlyReader::skip_element(const Element& e) {
   if (e.props.empty()) return Status::ok();
   if (!ascii_) {
     const int64_t fixed = e.fixed_size();
@@ -802,48 +572,83 @@ Status PlyReader::skip_element(const PlyElement& e) {
   return Status::ok();
 }
 
-Status PlyReader::skip_ascii_record(const PlyElement& e) {
-  for (const PlyProperty& p : e.props) {
-    if (Status s = skip_ascii_property(p); !s) return s;
+Status PlyReader::ascii_token(std::string_view& t, bool first, std::string_view what) {
+  if (first ? tok_.next(t) : tok_.next_on_line(t)) return Status::ok();
+  if (!tok_.status().is_ok()) return tok_.status();
+  return first ? tok_.end_error(what) : tok_.error(fmt::format("line ends before {}", what));
+}
+
+Status PlyReader::ascii_int(int64_t& n, bool first, std::string_view what) {
+  return first ? tok_.next_int(n, what) : tok_.next_int_on_line(n, what);
+}
+
+Status PlyReader::ascii_list_overrun(const PlyProperty& p, int64_t n, int64_t items) const {
+  if (!tok_.status().is_ok()) return tok_.status();
+  return tok_.error(fmt::format("list {} has the count {} but its line ends after {} items", p.name, n, items));
+}
+
+Status PlyReader::end_ascii_record(const Element& e) {
+  if (!tok_.at_line_end()) {
+    return tok_.error(fmt::format("more values on the line than element {} has properties (is a list count too small?)",
+                                  e.name));
   }
+  tok_.skip_line();
   return Status::ok();
 }
 
-Status PlyReader::skip_ascii_property(const PlyProperty& p) {
+Status PlyReader::skip_ascii_record(const Element& e) {
+  for (size_t k = 0; k < e.props.size(); ++k) {
+    if (Status s = skip_ascii_property(e.props[k], k == 0); !s) return s;
+  }
+  return end_ascii_record(e);
+}
+
+Status PlyReader::skip_ascii_property(const PlyProperty& p, bool first) {
   std::string_view t;
-  if (!p.is_list) return tok_.next(t) ? Status::ok() : tok_.end_error(p.name);
+  if (!p.is_list) return ascii_token(t, first, p.name);
   int64_t n = 0;
-  Status s = tok_.next_int(n, "list count");
-  if (!s) return s;
+  if (Status s = ascii_int(n, first, "list count"); !s) return s;
   if (n < 0) return tok_.error(fmt::format("negative list count {}", n));
   for (int64_t j = 0; j < n; ++j) {
-    if (!tok_.next(t)) return tok_.end_error("list item");
+    if (!tok_.next_on_line(t)) return ascii_list_overrun(p, n, j);
   }
   return Status::ok();
 }
 
-Status PlyReader::skip_binary_record(const PlyElement& e) {
+Status PlyReader::skip_binary_record(const Element& e) {
+  const uint64_t at = stream_.offset();
   for (const PlyProperty& p : e.props) {
-    Status s = skip_binary_record_property(p);
-    if (!s) return s;
+    if (Status s = skip_binary_record_property(p, at); !s) return s;
   }
   return Status::ok();
 }
 
-Status PlyReader::skip_binary_record_property(const PlyProperty& p) {
+Status PlyReader::skip_binary_record_property(const PlyProperty& p, uint64_t record_at) {
   if (!p.is_list) {
-    if (!stream_.skip(size_of(p.type))) return binary_truncated(fmt::format("property {}", p.name));
+    if (!stream_.skip(ply_type_size(p.type))) return binary_truncated(fmt::format("property {}", p.name));
     return Status::ok();
   }
-  const uint64_t at = stream_.offset();
-  const uint8_t* c = stream_.take(size_of(p.count_type));
+  const uint8_t* c = stream_.take(ply_type_size(p.count_type));
   if (c == nullptr) return binary_truncated(fmt::format("list {}", p.name));
-  const int64_t n = decode_int(c, p.count_type, swap_);
-  if (n < 0) return byte_error(path_, at, fmt::format("list {} has a negative count {}", p.name, n));
-  if (!stream_.skip(static_cast<uint64_t>(n) * size_of(p.type))) {
-    return binary_truncated(fmt::format("list {}", p.name));
-  }
+  const int64_t n = ply_decode_int(c, p.count_type, swap_);
+  if (n < 0) return byte_error(path_, record_at, fmt::format("list {} has a negative count {}", p.name, n));
+  if (static_cast<uint64_t>(n) * ply_type_size(p.type) > stream_.remaining()) return binary_list_overrun(p, n, record_at);
+  stream_.skip(static_cast<uint64_t>(n) * ply_type_size(p.type));
   return Status::ok();
+}
+
+Status PlyReader::binary_list_overrun(const PlyProperty& p, int64_t n, uint64_t record_at) const {
+  return byte_error(path_, record_at,
+                    fmt::format("truncated record: list {} has the count {} ({} bytes) but only {} bytes are left", p.name, n,
+                                static_cast<uint64_t>(n) * ply_type_size(p.type), stream_.remaining()));
+}
+
+void PlyReader::warn_trailing() {
+  if (ascii_) {
+    warn_trailing_text(tok_);
+  } else if (stream_.offset() < tok_.size()) {
+    warn(trailing_data_warning(path_, stream_.offset(), tok_.size() - stream_.offset()));
+  }
 }
 
 }  // namespace

@@ -166,6 +166,16 @@ void TextTokenizer::skip_line() {
 
 bool TextTokenizer::at_line_end() { return skip_blanks(false) != Stop::Token; }
 
+uint64_t TextTokenizer::skip_space() {
+  skip_blanks(true);
+  return offset();
+}
+
+std::string_view TextTokenizer::peek_bytes(size_t n) {
+  const size_t have = ensure(std::min(n, kMaxToken));
+  return {buffer_.get() + pos_, std::min(have, n)};
+}
+
 Status TextTokenizer::error(std::string_view message) const {
   return Status::corruption(fmt::format("{}: line {}: {}", path_, token_line_, message));
 }

@@ -51,6 +51,11 @@ class TextTokenizer {
   void skip_line();
   // True when nothing but blanks (and a comment) remains on the current line.
   bool at_line_end();
+  // Skips blanks, line ends and comments; returns the offset of the next byte, size() when the
+  // file holds nothing else. Reads no token, so a long run of other bytes (zeros) costs one chunk.
+  uint64_t skip_space();
+  // Up to n (at most kMaxToken) bytes at the cursor, not consumed: fewer at the end of the file.
+  std::string_view peek_bytes(size_t n);
 
   // Typed reads. Errors name the line: a missing token, a token that is not a number, or a
   // NaN/Inf value ("line 7: coordinate is not finite"). `what` names the expected value.

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <string>
+#include <vector>
 #include <unistd.h>
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
@@ -26,6 +27,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     }
   }
   frontier::Scene scene;
-  (void)frontier::load_scene(path, scene);
+  std::vector<std::string> warnings;  // kept, not printed
+  (void)frontier::load_scene(path, scene, &warnings);
   return 0;
 }

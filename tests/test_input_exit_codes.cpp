@@ -1,0 +1,133 @@
+// What frontier-build, frontier-store and frontier-view answer to bad input and bad options, run
+// as users run them: exit 1 for bad input with a message naming the file, exit 2 for bad
+// options (the README's rule), whatever layer finds the problem (CLI11 has exit codes of its
+// own, 100 and up, that must not leak). And one rule for models with nothing in them: bad input
+// in every format, for the builder and the in-memory viewer alike.
+#include "tests/input_files.h"
+#include "tests/process_util.h"
+#include "tests/test_files.h"
+
+#include <fmt/ranges.h>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace frontier {
+namespace {
+
+namespace fs = std::filesystem;
+using proc::run_binary;
+
+const fs::path& scratch() { return testing::scratch_dir("frontier_input_exit"); }
+
+proc::RunResult build(const std::vector<std::string>& args) { return run_binary(FRONTIER_BUILD_PATH, args, scratch()); }
+
+TEST(InputExitCodes, MissingInputOrDirectoryIsBadInputNamingIt) {
+  const fs::path out = scratch() / "missing.frontier";
+  const fs::path dir = scratch() / "models";
+  fs::create_directories(dir);
+  const fs::path dir_ply = scratch() / "folder.ply";
+  fs::create_directories(dir_ply);
+  for (const fs::path& in : {scratch() / "missing.ply", scratch() / "missing.xyz", dir, dir_ply}) {
+    const auto r = build({in.string(), "-o", out.string(), "--quiet"});
+    EXPECT_EQ(r.exit_code, 1) << in << ": " << r.err;
+    EXPECT_NE(r.err.find(in.string() + ": "), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(out));
+  }
+  // The second of two inputs, too.
+  const std::string good = testing::write_file(scratch() / "good.off", testing::off_text(testing::grid_mesh(3)));
+  const auto r = build({good, (scratch() / "absent.nff").string(), "-o", out.string(), "--quiet"});
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("absent.nff"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(out));
+}
+
+TEST(InputExitCodes, OptionErrorsExitTwoAndHelpZero) {
+  const std::string in = testing::write_file(scratch() / "opts.off", testing::off_text(testing::grid_mesh(3)));
+  const std::string out = (scratch() / "opts.frontier").string();
+  const std::vector<std::vector<std::string>> bad = {
+      {in, "-o", out, "--bogus"},             // unknown option
+      {in},                                   // no -o
+      {"-o", out},                            // no input
+      {in, "-o", out, "--codec", "zip"},      // not one of the choices
+      {in, "-o", out, "--tessellate", "2"},   // out of range
+      {in, "-o", out, "--cell-prims", "x"},   // not a number
+      {in, "-o", out, "--memory", "lots"},    // not a size
+      {in, "-o", out, "--quant-bits", "40"},  // checked by the builder
+  };
+  for (const auto& args : bad) {
+    const auto r = build(args);
+    EXPECT_EQ(r.exit_code, 2) << fmt::format("{}", fmt::join(args, " ")) << ": " << r.err;
+    EXPECT_FALSE(r.err.empty());
+    EXPECT_FALSE(fs::exists(out));
+  }
+  const auto help = build({"--help"});
+  EXPECT_EQ(help.exit_code, 0) << help.err;
+  EXPECT_NE(help.out.find("Exit status"), std::string::npos) << help.out;
+}
+
+TEST(InputExitCodes, StoreToolMissingStoreIsOneAndBadOptionsTwo) {
+  const fs::path missing = scratch() / "no_such.frontier";
+  for (const char* command : {"info", "verify"}) {
+    const auto r = run_binary(FRONTIER_STORE_PATH, {command, missing.string()}, scratch());
+    EXPECT_EQ(r.exit_code, 1) << command << ": " << r.err;
+    EXPECT_NE(r.err.find(missing.string()), std::string::npos) << r.err;
+  }
+  const std::vector<std::vector<std::string>> bad = {{}, {"info"}, {"frobnicate", missing.string()},
+                                                     {"verify", "--bogus", missing.string()}};
+  for (const auto& args : bad) {
+    const auto r = run_binary(FRONTIER_STORE_PATH, args, scratch());
+    EXPECT_EQ(r.exit_code, 2) << fmt::format("{}", fmt::join(args, " ")) << ": " << r.err;
+  }
+}
+
+// Every format with no primitives: a 0-byte file where the format allows it, else the smallest
+// well-formed file that declares nothing.
+TEST(InputEmptyModel, NoPrimitivesIsBadInputInEveryFormat) {
+  const testing::TriangleMesh none;
+  const std::vector<std::pair<std::string, std::string>> files = {
+      {"empty.nff", ""},
+      {"comments.nff", "# nothing but a comment\nv\nfrom 0 0 5\nat 0 0 0\nup 0 1 0\nangle 45\n"},
+      {"empty.obj", ""},
+      {"vertices.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n"},
+      {"empty.off", "OFF\n0 0 0\n"},
+      {"empty.ply", testing::ply_ascii(none)},
+      {"empty_bin.ply", testing::ply_binary(none)},
+      {"empty.stl", "solid nothing\nendsolid nothing\n"},
+      {"empty_bin.stl", testing::stl_binary(none)},
+  };
+  const fs::path out = scratch() / "empty.frontier";
+  for (const auto& [name, bytes] : files) {
+    const std::string in = testing::write_file(scratch() / name, bytes);
+    const auto r = build({in, "-o", out.string(), "--quiet"});
+    EXPECT_EQ(r.exit_code, 1) << name << ": " << r.err;
+    EXPECT_NE(r.err.find(in + ": the model has no primitives"), std::string::npos) << name << ": " << r.err;
+    EXPECT_FALSE(fs::exists(out)) << name;
+    // The in-memory viewer holds the same rule.
+    const auto v = run_binary(FRONTIER_VIEW_PATH, {in, "--headless", "--size", "16x16"}, scratch());
+    EXPECT_EQ(v.exit_code, 1) << name << ": " << v.err;
+    EXPECT_NE(v.err.find(in + ": the model has no primitives"), std::string::npos) << name << ": " << v.err;
+  }
+  // An empty input beside a good one is still named.
+  const std::string good = testing::write_file(scratch() / "good.off", testing::off_text(testing::grid_mesh(3)));
+  const auto r = build({good, (scratch() / "empty.obj").string(), "-o", out.string(), "--quiet"});
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("empty.obj: the model has no primitives"), std::string::npos) << r.err;
+}
+
+TEST(InputEmptyModel, OnlyDegeneratePrimitivesIsBadInput) {
+  const std::string in = testing::write_file(scratch() / "flat.off", "OFF\n3 2 0\n0 0 0\n1 0 0\n2 0 0\n3 0 1 2\n3 2 1 0\n");
+  const fs::path out = scratch() / "flat.frontier";
+  const auto r = build({in, "-o", out.string(), "--quiet"});
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find(in + ": the model has no primitives left: all 2 are degenerate"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(out));
+  const auto v = run_binary(FRONTIER_VIEW_PATH, {in, "--headless", "--size", "16x16"}, scratch());
+  EXPECT_EQ(v.exit_code, 1) << v.err;
+  EXPECT_NE(v.err.find("all 2 are degenerate"), std::string::npos) << v.err;
+}
+
+}  // namespace
+}  // namespace frontier
