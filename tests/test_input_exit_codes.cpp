@@ -83,6 +83,18 @@ TEST(InputExitCodes, StoreToolMissingStoreIsOneAndBadOptionsTwo) {
   }
 }
 
+// frontier-view's option errors are 2 as well (CLI11's own codes before: 106 for an unknown
+// option or a missing model), --help 0.
+TEST(InputExitCodes, ViewerOptionErrorsExitTwo) {
+  const std::vector<std::vector<std::string>> bad = {{}, {"--bogus"}, {"model.nff", "--size", "abc"},
+                                                     {"model.nff", "--threads", "x"}};
+  for (const auto& args : bad) {
+    const auto r = run_binary(FRONTIER_VIEW_PATH, args, scratch());
+    EXPECT_EQ(r.exit_code, 2) << fmt::format("{}", fmt::join(args, " ")) << ": " << r.err;
+  }
+  EXPECT_EQ(run_binary(FRONTIER_VIEW_PATH, {"--help"}, scratch()).exit_code, 0);
+}
+
 // Every format with no primitives: a 0-byte file where the format allows it, else the smallest
 // well-formed file that declares nothing.
 TEST(InputEmptyModel, NoPrimitivesIsBadInputInEveryFormat) {

@@ -8,7 +8,7 @@
 //   frontier-view STORE --headless [--png F] [--ids F] [--stats F]
 //       one complete frame of a store from its camera (paged, waiting for pages);
 //   frontier-view MODEL --headless [--method brute|raywalk|frustum] [--png F] [--ids F] [--stats F]
-//       a model file (NFF, PLY, OBJ, OFF) rendered in memory (or a store with --in-memory);
+//       a model file (NFF, PLY, OBJ, OFF, STL) rendered in memory (or a store with --in-memory);
 //   frontier-view MODEL --headless --method imr|tessellated|mesa [--order O] [--bound-slices N]
 //       [--tessellation N] [--back-sample-culling]
 //       immediate-mode ray casting of its curved primitives (src/raster/imr.h), or the paper's
@@ -144,10 +144,16 @@ int run_store(ViewerOptions& o) {
 int main(int argc, char** argv) {
   CLI::App app{"frontier-view: walk through a store far larger than memory with exact per-pixel visibility\n"
                "(frustum casting on the CPU), paging in only the cells the view reaches, and report the\n"
-               "working set every frame. Also renders a model file (NFF, PLY, OBJ, OFF) in memory."};
+               "working set every frame. Also renders a model file (NFF, PLY, OBJ, OFF, STL) in memory.\n"
+               "Exit status: 0 done, 1 bad input (a missing, malformed or empty model or store), 2 bad options."};
   ViewerOptions o;
   register_options(app, o);
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int code = app.exit(e);  // prints the help, or the error and a hint
+    return code == 0 ? 0 : 2;
+  }
   if (const std::string why = finish_options(app, o); !why.empty()) return bad_option(why);
   const bool store = is_store(o.scene_path);
   if (!store || o.in_memory) return run_model(o, store);
