@@ -101,6 +101,11 @@ struct BuildReport {
 // items, references and clipped bounds), measured with getrusage on the building model.
 inline constexpr uint64_t kBytesPerPrimitive = 400;
 
+// What a build's peak RSS may exceed --memory by, for any --memory of 32M or more (README): the
+// program's code and libraries (about 30 MiB resident), the window of a mapped binary PLY's
+// vertices and the fixed buffers between the reader thread and the main one.
+inline constexpr uint64_t kBuildMemoryOverhead = uint64_t{48} << 20;
+
 // Builds the store, reporting progress (rate, ETA) on stderr unless options.quiet. On failure nothing exists at options.output that was not there before
 // (an existing store is replaced only by a complete one).
 Result<BuildReport> build_store(const BuildOptions& options);
