@@ -48,23 +48,24 @@ double seconds_since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }
 
-// A uniform sample of primitive centres (Vitter's algorithm R), deterministic.
+// A uniform sample of at most `capacity` primitive centres (Vitter's algorithm R), deterministic.
 class Reservoir {
  public:
-  explicit Reservoir(uint64_t seed) : rng_(seed) {}
+  explicit Reservoir(uint64_t seed, size_t capacity = kSampleSize) : rng_(seed), capacity_(capacity) {}
   void offer(const Vec3& p) {
     ++seen_;
-    if (points_.size() < kSampleSize) {
+    if (points_.size() < capacity_) {
       points_.push_back(p);
       return;
     }
     const uint64_t k = std::uniform_int_distribution<uint64_t>(0, seen_ - 1)(rng_);
-    if (k < kSampleSize) points_[k] = p;
+    if (k < capacity_) points_[k] = p;
   }
   std::vector<Vec3>& points() { return points_; }
 
  private:
   std::mt19937_64 rng_;
+  size_t capacity_;
   std::vector<Vec3> points_;
   uint64_t seen_ = 0;
 };
@@ -245,9 +246,6 @@ class StoreBuilder {
     if (Status s = ingest(root); !s) return s;
     report_.ingest_seconds = seconds_since(t);
 
-    capacity_ = options_.part_primitives > 0
-                    ? options_.part_primitives
-                    : std::max<uint64_t>(options_.memory / kBytesPerPrimitive, 4ull * options_.cell_prims);
     if (options_.walkable) {
       const double voxel = options_.sdf_voxel > 0.0 ? options_.sdf_voxel : WalkableGridBuilder::default_voxel_size(bounds_);
       const int band = WalkableGridBuilder::band_voxels_for_radius(options_.walk_radius, voxel);
@@ -436,6 +434,17 @@ class StoreBuilder {
     return Status::ok();
   }
 
+  // Most primitives of one part in core: the budget less the store's tree, cell table and page
+  // handles, held until the end and then encoded into sections beside themselves (hence twice);
+  // at least four cells' worth.
+  uint64_t capacity() const {
+    if (options_.part_primitives > 0) return options_.part_primitives;
+    const uint64_t tables = 2 * (cells_.capacity() * sizeof(StoreCell) + nodes_.capacity() * sizeof(KdTree::Node) +
+                                 2 * report_.pages * sizeof(store::Handle));
+    const uint64_t free = options_.memory - std::min(options_.memory, tables);
+    return std::max<uint64_t>(free / kBytesPerPrimitive, 4ull * options_.cell_prims);
+  }
+
   // Plans median splits of `part` from its sample until every leaf's estimate fits.
   std::vector<PlanNode> plan(const Part& part) const {
     std::vector<PlanNode> nodes;
@@ -454,7 +463,7 @@ class StoreBuilder {
       const Aabb region = nodes[t.node].region;
       // Straddling primitives are written to both sides: estimate 15 % on top.
       const double estimate = 1.15 * per_sample * static_cast<double>(t.end - t.begin);
-      if (estimate <= 0.7 * static_cast<double>(capacity_) || t.end - t.begin < 64 || leaves >= kMaxFanOut) continue;
+      if (estimate <= 0.7 * static_cast<double>(capacity()) || t.end - t.begin < 64 || leaves >= kMaxFanOut) continue;
       const Vec3 e = region.extent();
       const int axis = e.x >= e.y && e.x >= e.z ? 0 : (e.y >= e.z ? 1 : 2);
       const size_t mid = t.begin + (t.end - t.begin) / 2;
@@ -486,8 +495,9 @@ class StoreBuilder {
 
   // Turns a part into cells: in core when it fits, else split on disk first.
   Status process(Part part, uint32_t depth) {
-    if (part.count <= capacity_ || depth >= 16) return build_in_core(part, depth);
+    if (part.count <= capacity() || depth >= 16) return build_in_core(part, depth);
     std::vector<PlanNode> nodes = plan(part);
+    std::vector<Vec3>().swap(part.sample);  // planned: not needed while the parts are built
     if (nodes.size() == 1) return build_in_core(part, depth);
     std::vector<Part> parts;
     if (Status s = distribute(part, nodes, parts); !s) return s;
@@ -519,10 +529,13 @@ class StoreBuilder {
   Status distribute(const Part& part, std::vector<PlanNode>& nodes, std::vector<Part>& parts) {
     std::vector<std::unique_ptr<SpillWriter>> writers;
     std::vector<Reservoir> samples;
-    // The part buffers together take at most a quarter of the budget.
+    // The part buffers together take at most a quarter of the budget, their samples a sixteenth
+    // (a 1G budget keeps full samples).
     size_t leaves = 0;
     for (const PlanNode& n : nodes) leaves += n.axis < 0 ? 1 : 0;
-    const size_t buffer = std::clamp<size_t>(options_.memory / 4 / std::max<size_t>(leaves, 1), 64 << 10, kPartBuffer);
+    leaves = std::max<size_t>(leaves, 1);
+    const size_t buffer = std::clamp<size_t>(options_.memory / 4 / leaves, 64 << 10, kPartBuffer);
+    const size_t sample_size = std::clamp<size_t>(options_.memory / 16 / sizeof(Vec3) / leaves, 256, kSampleSize);
     for (PlanNode& n : nodes) {
       if (n.axis >= 0) continue;
       n.part = static_cast<int>(parts.size());
@@ -533,7 +546,7 @@ class StoreBuilder {
       parts.push_back(std::move(p));
       writers.push_back(std::make_unique<SpillWriter>(buffer));
       if (Status s = writers.back()->open(parts.back().path); !s) return s;
-      samples.emplace_back(0x5eed + parts.size());
+      samples.emplace_back(0x5eed + parts.size(), sample_size);
     }
     const auto t = std::chrono::steady_clock::now();
     const double scale = glm::length(part.region.extent());
@@ -571,7 +584,9 @@ class StoreBuilder {
     for (size_t k = 0; k < parts.size(); ++k) {
       if (Status s = writers[k]->close(); !s) return s;
       parts[k].count = writers[k]->records();
-      parts[k].sample = std::move(samples[k].points());
+      // Only a part that is split again is planned from its sample.
+      if (parts[k].count > capacity()) parts[k].sample = std::move(samples[k].points());
+      samples[k] = Reservoir(0);
       report_.spill_bytes += writers[k]->bytes();
     }
     report_.spill_seconds += seconds_since(t);
@@ -667,9 +682,11 @@ class StoreBuilder {
     codec.lattice = lattice_;
     if (const char* s = std::getenv("FRONTIER_DRACO_SPEED")) codec.draco_speed = std::atoi(s);
     std::vector<Result<EncodedCell>> encoded;
+    std::vector<uint32_t> references;
     for (size_t first = 0; first < cells.size(); first += kEncodeChunk) {
       const size_t last = std::min(cells.size(), first + kEncodeChunk);
       encoded.assign(last - first, Result<EncodedCell>(Status::ok()));
+      references.assign(last - first, 0);
       arena_->execute([&] {
         tbb::parallel_for(first, last, [&](size_t c) {
           const KdTree::Cell& cell = cells[c];
@@ -684,6 +701,10 @@ class StoreBuilder {
             raw.codec = CellCodec::Raw;
             e = encode_cell(local, raw);
           }
+          if (e) {  // only the count of the decoded cell is needed: 256 of them would be megabytes
+            references[c - first] = static_cast<uint32_t>(e->decoded.size());
+            e->decoded = Scene{};
+          }
           encoded[c - first] = std::move(e);
         });
       });
@@ -697,7 +718,7 @@ class StoreBuilder {
           auto page = writer_->add_page(static_cast<uint8_t>(e->codec), e->payload);
           if (!page) return page.status();
           record.page = *page;
-          record.references = static_cast<uint32_t>(e->decoded.size());
+          record.references = references[c - first];
           report_.page_bytes += e->payload.size();
           ++report_.pages;
           if (record.references == 0) record.page = StoreCell::kNoPage;  // everything dropped
@@ -765,7 +786,6 @@ class StoreBuilder {
   Aabb bounds_;
   Aabb root_region_;  // bounds_ padded: the top tree's root
   Lattice lattice_;
-  uint64_t capacity_ = 0;
   uint64_t root_count_ = 0;
   bool reparse_ = false;  // the root part is the inputs, parsed again (no ingest spill)
   std::vector<uint32_t> material_bases_;  // per input: its first material in info_.materials
@@ -784,6 +804,7 @@ void tune_allocator_for_build() {
   mallopt(M_TRIM_THRESHOLD, INT_MAX);
   mallopt(M_MMAP_THRESHOLD, 32 << 20);
   mallopt(M_TOP_PAD, 256 << 20);
+  mallopt(M_ARENA_MAX, 1);
 }
 
 Result<BuildReport> build_store(const BuildOptions& options) {

@@ -28,8 +28,10 @@
 // when a part is loaded one reads (and snaps) batches while the other sorts or gathers them.
 // At most four batches of 4096 primitives are in flight between the two.
 //
-// Memory: the spill buffers, one part in core (estimated at kBytesPerPrimitive per primitive)
-// and the pages being encoded. Temporary files live in a directory beside the output
+// Memory (--memory; the bound is peak RSS <= memory + kBuildMemoryOverhead): one part in core
+// (estimated at kBytesPerPrimitive per primitive), or a partition pass's part buffers (a quarter
+// of the budget) and samples (a sixteenth), beside the store's tree, cell table and page handles,
+// which grow with the model and leave parts less room as they do. Temporary files live in a directory beside the output
 // (".NAME.build-XXXXXX"), removed at the end and on failure; a killed build may leave it
 // behind, and the next build of the same output removes such leftovers.
 #pragma once
@@ -114,8 +116,10 @@ Result<BuildReport> build_store(const BuildOptions& options);
 // the mmap threshold fixed at 32 MiB) instead of returning it to the kernel and faulting it in
 // again for the next part: a 20 M-triangle build took 1.7 M page faults and 5 s of system time
 // before, 0.28 M and 2.5 s after. Peak RSS is unchanged (pages are reused, not added; the heap's
-// padding is address space until touched). Process-wide: frontier-build and bench_build call it
-// first thing in main.
+// padding is address space until touched). One malloc arena for all threads: freed memory of
+// one thread is reused by the others instead of each arena keeping its own high-water mark (a
+// 10 M-triangle build with --memory 32M peaked at 86 MiB with glibc's 8 per core, 71 with one).
+// Process-wide: frontier-build and bench_build call it first thing in main.
 void tune_allocator_for_build();
 
 }  // namespace frontier

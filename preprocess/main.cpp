@@ -31,7 +31,7 @@ int main(int argc, char** argv) {
   frontier::tune_allocator_for_build();
   CLI::App app{
       "frontier-build: stream PLY/OBJ/OFF/NFF models into one paged, compressed, checksummed k-d tree store.\n"
-      "Memory stays within --memory (plus buffers): parts of the model that do not fit are split on disk\n"
+      "Peak memory stays within --memory + 48 MiB: parts of the model that do not fit are split on disk\n"
       "first. The store appears atomically (OUT.tmp, fsync, rename); a failed build leaves no OUT.\n"
       "A single input with a frontier-gen sidecar (MODEL.json beside MODEL) that lists rooms and portals\n"
       "also stores that cells-and-portals graph (section \"portals\", for frontier-view --visibility portals).",
@@ -42,7 +42,7 @@ int main(int argc, char** argv) {
       ->required()
       ->check(CLI::ExistingFile);
   app.add_option("-o,--output", options.output, "the store file to write")->required();
-  app.add_option("--memory", memory, "memory budget for the build, e.g. 512M, 1G (default 1G)");
+  app.add_option("--memory", memory, "memory budget for the build, e.g. 512M, 1G (default 1G); peak RSS stays within it + 48 MiB");
   app.add_option("--codec", codec, "cell page codec: draco (default) or raw (exact doubles)")
       ->check(CLI::IsMember({"draco", "raw"}));
   app.add_option("--quant-bits", options.quant_bits, "bits per axis of the global position lattice (Draco), 8..30")
