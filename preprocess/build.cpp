@@ -2,6 +2,7 @@
 #include "preprocess/build.h"
 
 #include "preprocess/spill.h"
+#include "preprocess/temp_dir.h"
 #include "preprocess/walkable_grid.h"
 #include "src/engine/kdtree.h"
 #include "src/io/load_scene.h"
@@ -68,40 +69,6 @@ class Reservoir {
   size_t capacity_;
   std::vector<Vec3> points_;
   uint64_t seen_ = 0;
-};
-
-// The temporary directory beside the output; removed with everything in it on destruction.
-class TempDir {
- public:
-  static Result<TempDir> create(const std::string& output) {
-    const fs::path out(output);
-    const fs::path dir = out.has_parent_path() ? out.parent_path() : fs::path(".");
-    const std::string prefix = "." + out.filename().string() + ".build-";
-    // Leftovers of killed builds of the same output.
-    std::error_code ec;
-    for (const auto& entry : fs::directory_iterator(dir, ec)) {
-      if (entry.path().filename().string().rfind(prefix, 0) == 0) fs::remove_all(entry.path(), ec);
-    }
-    std::string pattern = (dir / (prefix + "XXXXXX")).string();
-    if (::mkdtemp(pattern.data()) == nullptr) {
-      return Status::io_error(fmt::format("{}: cannot create a temporary directory: {}", pattern, std::strerror(errno)));
-    }
-    TempDir t;
-    t.path_ = pattern;
-    return t;
-  }
-  TempDir() = default;
-  TempDir(TempDir&& o) noexcept : path_(std::exchange(o.path_, {})) {}
-  TempDir& operator=(TempDir&&) = delete;
-  ~TempDir() {
-    std::error_code ec;
-    if (!path_.empty()) fs::remove_all(path_, ec);
-  }
-  std::string file(const std::string& name) const { return (fs::path(path_) / name).string(); }
-  const std::string& path() const { return path_; }
-
- private:
-  std::string path_;
 };
 
 // Batches handed from a producer thread to the thread that consumes them, at most `depth` in
@@ -232,12 +199,7 @@ class StoreBuilder {
     const auto start = std::chrono::steady_clock::now();
     if (Status s = check_options(); !s) return s;
     if (Status s = read_portals(); !s) return s;
-    auto temp = TempDir::create(options_.output);
-    if (!temp) return temp.status();
-    temp_.emplace(std::move(*temp));
-    auto writer = store::StoreWriter::create(fsys_, options_.output);
-    if (!writer) return writer.status();
-    writer_ = std::move(*writer);
+    if (Status s = open_temporaries(); !s) return s;
     const int threads = options_.threads > 0 ? options_.threads : static_cast<int>(tbb::task_arena::automatic);
     arena_.emplace(threads);
 
@@ -276,6 +238,9 @@ class StoreBuilder {
       return Status::invalid_argument(fmt::format("--memory {}: at least 16M is needed", options_.memory));
     }
     if (options_.threads < 0) return Status::invalid_argument("--threads must be >= 0");
+    if (!options_.tmp_dir.empty()) {
+      if (Status s = check_temp_dir(options_.tmp_dir, "--tmp-dir"); !s) return s;
+    }
     if (options_.walkable && !(options_.walk_radius > 0.0 && std::isfinite(options_.walk_radius))) {
       return Status::invalid_argument("--walk-radius must be positive");
     }
@@ -289,6 +254,29 @@ class StoreBuilder {
         return Status::invalid_argument(fmt::format("{}: the output would overwrite an input", in));
       }
     }
+    return Status::ok();
+  }
+
+  // The temporary directory (--tmp-dir, else beside the output) and OUT.tmp, both locked for the
+  // build's life, after removing what dead builds left there (said on stderr, even when quiet).
+  Status open_temporaries() {
+    std::vector<Leftover> removed;
+    const fs::path out(options_.output);
+    const std::string out_dir = out.has_parent_path() ? out.parent_path().string() : std::string(".");
+    if (!options_.tmp_dir.empty()) remove_dead_temp_dirs(out_dir, removed);  // from builds without it
+    auto temp = BuildTempDir::create(options_.tmp_dir.empty() ? out_dir : options_.tmp_dir, options_.output, removed);
+    if (!temp) return temp.status();
+    temp_.emplace(std::move(*temp));
+    auto staging = StagingLock::claim(options_.output, removed);
+    for (const Leftover& l : removed) std::fprintf(stderr, "frontier-build: %s\n", describe(l).c_str());
+    if (!staging) return staging.status();
+    staging_.emplace(std::move(*staging));
+    auto writer = store::StoreWriter::create(fsys_, options_.output);
+    if (!writer) {
+      ::unlink((options_.output + ".tmp").c_str());  // ours: claimed above
+      return writer.status();
+    }
+    writer_ = std::move(*writer);
     return Status::ok();
   }
 
@@ -775,7 +763,8 @@ class StoreBuilder {
   }
 
   const BuildOptions& options_;
-  std::optional<TempDir> temp_;  // declared first: removed last, after the writer
+  std::optional<BuildTempDir> temp_;  // declared first: removed last, after the writer
+  std::optional<StagingLock> staging_;  // released after the writer removed or renamed OUT.tmp
   // The writer's file system outlives the writer: a failed build's writer removes NAME.tmp
   // through it when the builder is destroyed.
   store::PosixFileSystem fsys_;

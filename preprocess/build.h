@@ -28,12 +28,15 @@
 // when a part is loaded one reads (and snaps) batches while the other sorts or gathers them.
 // At most four batches of 4096 primitives are in flight between the two.
 //
+// Temporaries (preprocess/temp_dir.h): a directory ".NAME.build-XXXXXX" in --tmp-dir or beside
+// the output, and OUT.tmp beside the output, each locked for the build's life and removed at
+// the end and on failure. A killed build leaves them behind; the next build that looks there
+// removes those no live build holds, and says so on stderr.
+//
 // Memory (--memory; the bound is peak RSS <= memory + kBuildMemoryOverhead): one part in core
 // (estimated at kBytesPerPrimitive per primitive), or a partition pass's part buffers (a quarter
 // of the budget) and samples (a sixteenth), beside the store's tree, cell table and page handles,
-// which grow with the model and leave parts less room as they do. Temporary files live in a directory beside the output
-// (".NAME.build-XXXXXX"), removed at the end and on failure; a killed build may leave it
-// behind, and the next build of the same output removes such leftovers.
+// which grow with the model and leave parts less room as they do.
 #pragma once
 
 #include "src/paging/cell_codec.h"
@@ -48,6 +51,8 @@ namespace frontier {
 struct BuildOptions {
   std::vector<std::string> inputs;
   std::string output;
+  // Where the temporary directory goes (an existing, writable directory); empty: beside output.
+  std::string tmp_dir;
   uint64_t memory = uint64_t{1} << 30;  // bytes
   CellCodec codec = CellCodec::Draco;
   int quant_bits = 16;
