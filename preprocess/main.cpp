@@ -31,7 +31,7 @@ int main(int argc, char** argv) {
   frontier::tune_allocator_for_build();
   CLI::App app{
       "frontier-build: stream PLY/OBJ/OFF/NFF models into one paged, compressed, checksummed k-d tree store.\n"
-      "Peak memory stays within --memory + 48 MiB: parts of the model that do not fit are split on disk\n"
+      "Memory stays within --memory (plus buffers): parts of the model that do not fit are split on disk\n"
       "first. The store appears atomically (OUT.tmp, fsync, rename); a failed build leaves no OUT.\n"
       "A single input with a frontier-gen sidecar (MODEL.json beside MODEL) that lists rooms and portals\n"
       "also stores that cells-and-portals graph (section \"portals\", for frontier-view --visibility portals).",
