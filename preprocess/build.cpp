@@ -170,6 +170,7 @@ bool zero_area(const Triangle& t) {
 // A file of primitives that still has to be turned into cells.
 struct Part {
   std::string path;      // its spill file; empty when the part is the inputs themselves
+  uint64_t bytes = 0;    // the spill file's size
   Aabb region;
   uint64_t count = 0;
   std::vector<Vec3> sample;
@@ -200,6 +201,7 @@ class StoreBuilder {
     if (Status s = check_options(); !s) return s;
     if (Status s = read_portals(); !s) return s;
     if (Status s = open_temporaries(); !s) return s;
+    if (Status s = check_disk_space(); !s) return s;
     const int threads = options_.threads > 0 ? options_.threads : static_cast<int>(tbb::task_arena::automatic);
     arena_.emplace(threads);
 
@@ -257,12 +259,16 @@ class StoreBuilder {
     return Status::ok();
   }
 
+  std::string output_dir() const {
+    const fs::path out(options_.output);
+    return out.has_parent_path() ? out.parent_path().string() : std::string(".");
+  }
+
   // The temporary directory (--tmp-dir, else beside the output) and OUT.tmp, both locked for the
   // build's life, after removing what dead builds left there (said on stderr, even when quiet).
   Status open_temporaries() {
     std::vector<Leftover> removed;
-    const fs::path out(options_.output);
-    const std::string out_dir = out.has_parent_path() ? out.parent_path().string() : std::string(".");
+    const std::string out_dir = output_dir();
     if (!options_.tmp_dir.empty()) remove_dead_temp_dirs(out_dir, removed);  // from builds without it
     auto temp = BuildTempDir::create(options_.tmp_dir.empty() ? out_dir : options_.tmp_dir, options_.output, removed);
     if (!temp) return temp.status();
@@ -278,6 +284,33 @@ class StoreBuilder {
     }
     writer_ = std::move(*writer);
     return Status::ok();
+  }
+
+  // Decides whether the inputs are parsed again instead of spilled, and fails at once when the
+  // temporary folder cannot hold what the build will write there: the spill files and, on the
+  // same file system, the store; estimated from the primitives the inputs declare (or, for
+  // formats that declare none, their sizes).
+  Status check_disk_space() {
+    constexpr uint64_t kTextBytesPerPrimitive = 24, kStoreBytesDraco = 4, kStoreBytesRaw = 80;
+    uint64_t primitives = 0;
+    bool binary = true;
+    for (const std::string& in : options_.inputs) {
+      auto reader = open_scene_reader(in);
+      if (!reader) continue;  // reported by the ingest pass
+      const int64_t declared = (*reader)->declared_primitives();
+      primitives += declared >= 0 ? static_cast<uint64_t>(declared) : (*reader)->bytes_total() / kTextBytesPerPrimitive;
+      binary = binary && (*reader)->binary();
+    }
+    reparse_ = options_.reparse_binary_ply && binary;
+    const bool draco = options_.codec == CellCodec::Draco;
+    uint64_t needed = reparse_ ? 0 : primitives * kSpillBytesPerExactPrimitive;
+    if (primitives > capacity()) {  // parts, straddlers included
+      needed += primitives * 6 / 5 * (draco ? kSpillBytesPerLatticeTriangle : kSpillBytesPerExactPrimitive);
+    }
+    const bool with_store = same_file_system(temp_->path(), output_dir());
+    if (with_store) needed += primitives * (draco ? kStoreBytesDraco : kStoreBytesRaw);
+    return check_free_space(fs::path(temp_->path()).parent_path().string(), needed,
+                            with_store ? "the build's temporary files and the store" : "the build's temporary files");
   }
 
   // The cells and portals of the single input's sidecar, kept serialized until the end. Rooms
@@ -299,12 +332,6 @@ class StoreBuilder {
   // first partition pass instead: at 20 M triangles that is 1.7 GB not written and not read
   // back, for a second parse of 0.4 GB.
   Status ingest(Part& root) {
-    // An input that does not open is reported by the pass below.
-    reparse_ = options_.reparse_binary_ply &&
-               std::all_of(options_.inputs.begin(), options_.inputs.end(), [](const std::string& in) {
-                 auto reader = open_scene_reader(in);
-                 return reader && (*reader)->binary();
-               });
     SpillWriter out;
     if (!reparse_) {
       root.path = temp_->file("ingest");
@@ -341,7 +368,8 @@ class StoreBuilder {
     progress.finish();
     if (!reparse_) {
       if (Status s = out.close(); !s) return s;
-      report_.spill_bytes += out.bytes();
+      root.bytes = out.bytes();
+      spilled(root.bytes);
     }
     if (bounds_.empty()) bounds_ = Aabb(Vec3(-1.0), Vec3(1.0));  // an empty model still makes a store
     if (options_.codec == CellCodec::Draco) lattice_ = Lattice::covering(bounds_, options_.quant_bits);
@@ -492,8 +520,7 @@ class StoreBuilder {
     // A split that separated nothing (everything straddles) would recurse forever.
     bool progress = false;
     for (const Part& p : parts) progress |= p.count < part.count;
-    std::error_code ec;
-    if (!part.path.empty()) fs::remove(part.path, ec);
+    remove_spill(part);
     return emit(nodes, 0, parts, depth, progress);
   }
 
@@ -533,7 +560,7 @@ class StoreBuilder {
       p.snapped = true;
       parts.push_back(std::move(p));
       writers.push_back(std::make_unique<SpillWriter>(buffer));
-      if (Status s = writers.back()->open(parts.back().path); !s) return s;
+      if (Status s = writers.back()->open(parts.back().path, spill_lattice(parts.back())); !s) return s;
       samples.emplace_back(0x5eed + parts.size(), sample_size);
     }
     const auto t = std::chrono::steady_clock::now();
@@ -575,7 +602,8 @@ class StoreBuilder {
       // Only a part that is split again is planned from its sample.
       if (parts[k].count > capacity()) parts[k].sample = std::move(samples[k].points());
       samples[k] = Reservoir(0);
-      report_.spill_bytes += writers[k]->bytes();
+      parts[k].bytes = writers[k]->bytes();
+      spilled(parts[k].bytes);
     }
     report_.spill_seconds += seconds_since(t);
     return Status::ok();
@@ -591,7 +619,7 @@ class StoreBuilder {
       });
     }
     SpillReader in;
-    if (Status s = in.open(part.path); !s) return s;
+    if (Status s = in.open(part.path, spill_lattice(part)); !s) return s;
     for (bool end = false; !end;) {
       Scene batch;
       if (Status s = in.read(batch, kBatch, end); !s) return s;
@@ -599,6 +627,24 @@ class StoreBuilder {
       if (!to.push(std::move(batch))) return Status::ok();  // cancelled
     }
     return Status::ok();
+  }
+
+  // Spill files on disk: the report's total and peak.
+  void spilled(uint64_t bytes) {
+    report_.spill_bytes += bytes;
+    spill_on_disk_ += bytes;
+    report_.spill_peak_bytes = std::max(report_.spill_peak_bytes, spill_on_disk_);
+  }
+  void remove_spill(const Part& part) {
+    if (part.path.empty()) return;
+    std::error_code ec;
+    fs::remove(part.path, ec);
+    spill_on_disk_ -= std::min(spill_on_disk_, part.bytes);
+  }
+
+  // The lattice a part's spill file stores positions on: the store's, once snapped to it.
+  std::optional<Lattice> spill_lattice(const Part& part) const {
+    return part.snapped && options_.codec == CellCodec::Draco ? std::optional<Lattice>(lattice_) : std::nullopt;
   }
 
   // Snaps triangles to the lattice (Draco) and drops those that lose their area; spheres and
@@ -638,8 +684,7 @@ class StoreBuilder {
                                            return Status::ok();
                                          });
     if (!loaded) return loaded;
-    std::error_code ec;
-    if (!part.path.empty()) fs::remove(part.path, ec);
+    remove_spill(part);
     ++report_.parts;
 
     KdBuildOptions kd;
@@ -779,6 +824,7 @@ class StoreBuilder {
   bool reparse_ = false;  // the root part is the inputs, parsed again (no ingest spill)
   std::vector<uint32_t> material_bases_;  // per input: its first material in info_.materials
   uint64_t snapped_away_ = 0;
+  uint64_t spill_on_disk_ = 0;  // bytes of the spill files that exist now
   int next_file_ = 0;
   StoreModelInfo info_;
   std::vector<KdTree::Node> nodes_;

@@ -10,7 +10,8 @@
 //               median planes (longest axis) until every part's estimated in-core size fits
 //               the memory budget: the upper levels of the k-d tree.
 //   3. spill    one pass over the ingest file (or the inputs) snaps triangles to the lattice
-//               and writes every primitive to each part whose region its bounds overlap.
+//               and writes every primitive to each part whose region its bounds overlap
+//               (triangles as lattice indices, shared vertices once: spill.h).
 //   4. build    each part in turn: loaded, built in core by the SAH builder inside its region
 //               (cells of at most --cell-prims references), every cell encoded (in parallel)
 //               and written as one page. A part that turns out larger than planned is split
@@ -92,6 +93,7 @@ struct BuildReport {
   uint64_t input_bytes = 0;
   uint64_t store_bytes = 0;
   uint64_t spill_bytes = 0;             // written to temporary files
+  uint64_t spill_peak_bytes = 0;        // the most of them on disk at once
   uint64_t page_bytes = 0;              // payloads of all pages
   uint64_t sdf_bytes = 0;               // the collision grid: its section and brick pages (--walkable)
   uint64_t sdf_bricks = 0;              // brick pages of the collision grid

@@ -101,6 +101,11 @@ int main(int argc, char** argv) {
                              frontier::human_count(static_cast<double>(r.primitives) / std::max(r.seconds, 1e-9)),
                              r.ingest_seconds, r.spill_seconds, r.build_seconds, r.encode_seconds)
                      .c_str());
+    if (r.spill_bytes > 0) {
+      std::fprintf(stderr, "  temporary spill: %.1f MB written, at most %.1f MB on disk at once (%.1f bytes/primitive)\n",
+                   static_cast<double>(r.spill_bytes) / 1e6, static_cast<double>(r.spill_peak_bytes) / 1e6,
+                   static_cast<double>(r.spill_peak_bytes) / static_cast<double>(std::max<uint64_t>(r.primitives, 1)));
+    }
     if (options.walkable) {
       std::fprintf(stderr, "  collision grid: %.1f MB in the store (%llu bricks), %.1f MB in memory, %.1f MB spilled\n",
                    static_cast<double>(r.sdf_bytes) / 1e6, static_cast<unsigned long long>(r.sdf_bricks),

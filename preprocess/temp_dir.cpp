@@ -12,6 +12,7 @@
 #include <fcntl.h>
 #include <sys/file.h>
 #include <sys/stat.h>
+#include <sys/statvfs.h>
 #include <unistd.h>
 
 namespace frontier {
@@ -29,16 +30,6 @@ constexpr auto kUnlockedGrace = std::chrono::seconds(10);
 bool is_temp_dir_name(const std::string& name) {
   const size_t at = name.rfind(".build-");
   return name.size() > 1 && name[0] == '.' && at != std::string::npos && at > 0 && name.size() == at + 7 + 6;
-}
-
-uint64_t bytes_under(const fs::path& dir) {
-  uint64_t bytes = 0;
-  std::error_code ec;
-  for (fs::recursive_directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
-    std::error_code size_ec;
-    if (it->is_regular_file(size_ec)) bytes += it->file_size(size_ec);
-  }
-  return bytes;
 }
 
 bool older_than_grace(const fs::path& p) {
@@ -66,6 +57,16 @@ bool is_dead(const fs::path& dir, int& lock_fd) {
 
 }  // namespace
 
+uint64_t bytes_under(const std::string& dir) {
+  uint64_t bytes = 0;
+  std::error_code ec;
+  for (fs::recursive_directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    std::error_code size_ec;
+    if (it->is_regular_file(size_ec)) bytes += it->file_size(size_ec);
+  }
+  return bytes;
+}
+
 Status check_temp_dir(const std::string& dir, const std::string& option) {
   struct stat st {};
   if (::stat(dir.c_str(), &st) != 0) {
@@ -76,6 +77,20 @@ Status check_temp_dir(const std::string& dir, const std::string& option) {
     return Status::invalid_argument(fmt::format("{} {}: not writable: {}", option, dir, std::strerror(errno)));
   }
   return Status::ok();
+}
+
+Status check_free_space(const std::string& dir, uint64_t needed, const std::string& what) {
+  struct statvfs fs {};
+  if (::statvfs(dir.c_str(), &fs) != 0) return Status::ok();  // cannot tell: the writes will
+  const uint64_t free = static_cast<uint64_t>(fs.f_bavail) * fs.f_frsize;
+  if (needed <= free) return Status::ok();
+  return Status::io_error(fmt::format("{}: not enough free space for {}: about {:.1f} MB needed, {:.1f} MB free", dir,
+                                      what, static_cast<double>(needed) / 1e6, static_cast<double>(free) / 1e6));
+}
+
+bool same_file_system(const std::string& a, const std::string& b) {
+  struct stat sa {}, sb {};
+  return ::stat(a.c_str(), &sa) == 0 && ::stat(b.c_str(), &sb) == 0 && sa.st_dev == sb.st_dev;
 }
 
 std::string describe(const Leftover& leftover) {
@@ -91,7 +106,7 @@ void remove_dead_temp_dirs(const std::string& dir, std::vector<Leftover>& remove
     if (!is_temp_dir_name(path.filename().string()) || !fs::is_directory(fs::symlink_status(path, type_ec))) continue;
     int lock_fd = -1;
     if (is_dead(path, lock_fd)) {
-      Leftover leftover{path.string(), bytes_under(path)};
+      Leftover leftover{path.string(), bytes_under(path.string())};
       std::error_code remove_ec;
       fs::remove_all(path, remove_ec);
       if (!remove_ec) removed.push_back(std::move(leftover));

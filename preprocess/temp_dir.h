@@ -29,6 +29,9 @@ struct Leftover {
   uint64_t bytes = 0;
 };
 
+// The bytes of the regular files under `dir` (0 when it cannot be read).
+uint64_t bytes_under(const std::string& dir);
+
 // "removed leftovers of a killed build: PATH (N MB)".
 std::string describe(const Leftover& leftover);
 
@@ -60,6 +63,13 @@ Status check_temp_dir(const std::string& dir, const std::string& option);
 // Removes the leftovers of dead builds in `dir` (temporary directories of any output), appending
 // them to `removed`. Locked (live) ones are left alone.
 void remove_dead_temp_dirs(const std::string& dir, std::vector<Leftover>& removed);
+
+// Ok when the file system of `dir` has `needed` bytes free for this user; else IoError "DIR: not
+// enough free space for WHAT: about N MB needed, M MB free" (a failed write, found up front).
+Status check_free_space(const std::string& dir, uint64_t needed, const std::string& what);
+
+// Whether two existing paths are on one file system (false when either cannot be looked at).
+bool same_file_system(const std::string& a, const std::string& b);
 
 // OUT.tmp, claimed for this build: created if missing and locked until destruction. A leftover
 // of a dead build there is emptied (and reported in `removed`); one a live build holds makes
