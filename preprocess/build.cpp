@@ -2,6 +2,7 @@
 #include "preprocess/build.h"
 
 #include "preprocess/spill.h"
+#include "preprocess/temp_dir.h"
 #include "preprocess/walkable_grid.h"
 #include "src/engine/kdtree.h"
 #include "src/io/load_scene.h"
@@ -49,59 +50,26 @@ double seconds_since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }
 
-// A uniform sample of primitive centres (Vitter's algorithm R), deterministic.
+// A uniform sample of at most `capacity` primitive centres (Vitter's algorithm R), deterministic.
 class Reservoir {
  public:
-  explicit Reservoir(uint64_t seed) : rng_(seed) {}
+  explicit Reservoir(uint64_t seed, size_t capacity = kSampleSize) : rng_(seed), capacity_(capacity) {}
   void offer(const Vec3& p) {
     ++seen_;
-    if (points_.size() < kSampleSize) {
+    if (points_.size() < capacity_) {
       points_.push_back(p);
       return;
     }
     const uint64_t k = std::uniform_int_distribution<uint64_t>(0, seen_ - 1)(rng_);
-    if (k < kSampleSize) points_[k] = p;
+    if (k < capacity_) points_[k] = p;
   }
   std::vector<Vec3>& points() { return points_; }
 
  private:
   std::mt19937_64 rng_;
+  size_t capacity_;
   std::vector<Vec3> points_;
   uint64_t seen_ = 0;
-};
-
-// The temporary directory beside the output; removed with everything in it on destruction.
-class TempDir {
- public:
-  static Result<TempDir> create(const std::string& output) {
-    const fs::path out(output);
-    const fs::path dir = out.has_parent_path() ? out.parent_path() : fs::path(".");
-    const std::string prefix = "." + out.filename().string() + ".build-";
-    // Leftovers of killed builds of the same output.
-    std::error_code ec;
-    for (const auto& entry : fs::directory_iterator(dir, ec)) {
-      if (entry.path().filename().string().rfind(prefix, 0) == 0) fs::remove_all(entry.path(), ec);
-    }
-    std::string pattern = (dir / (prefix + "XXXXXX")).string();
-    if (::mkdtemp(pattern.data()) == nullptr) {
-      return Status::io_error(fmt::format("{}: cannot create a temporary directory: {}", pattern, std::strerror(errno)));
-    }
-    TempDir t;
-    t.path_ = pattern;
-    return t;
-  }
-  TempDir() = default;
-  TempDir(TempDir&& o) noexcept : path_(std::exchange(o.path_, {})) {}
-  TempDir& operator=(TempDir&&) = delete;
-  ~TempDir() {
-    std::error_code ec;
-    if (!path_.empty()) fs::remove_all(path_, ec);
-  }
-  std::string file(const std::string& name) const { return (fs::path(path_) / name).string(); }
-  const std::string& path() const { return path_; }
-
- private:
-  std::string path_;
 };
 
 // Batches handed from a producer thread to the thread that consumes them, at most `depth` in
@@ -203,6 +171,7 @@ bool zero_area(const Triangle& t) {
 // A file of primitives that still has to be turned into cells.
 struct Part {
   std::string path;      // its spill file; empty when the part is the inputs themselves
+  uint64_t bytes = 0;    // the spill file's size
   Aabb region;
   uint64_t count = 0;
   std::vector<Vec3> sample;
@@ -233,12 +202,8 @@ class StoreBuilder {
     if (Status s = check_options(); !s) return s;
     if (Status s = check_inputs(); !s) return s;
     if (Status s = read_portals(); !s) return s;
-    auto temp = TempDir::create(options_.output);
-    if (!temp) return temp.status();
-    temp_.emplace(std::move(*temp));
-    auto writer = store::StoreWriter::create(fsys_, options_.output);
-    if (!writer) return writer.status();
-    writer_ = std::move(*writer);
+    if (Status s = open_temporaries(); !s) return s;
+    if (Status s = check_disk_space(); !s) return s;
     const int threads = options_.threads > 0 ? options_.threads : static_cast<int>(tbb::task_arena::automatic);
     arena_.emplace(threads);
 
@@ -247,9 +212,6 @@ class StoreBuilder {
     if (Status s = ingest(root); !s) return s;
     report_.ingest_seconds = seconds_since(t);
 
-    capacity_ = options_.part_primitives > 0
-                    ? options_.part_primitives
-                    : std::max<uint64_t>(options_.memory / kBytesPerPrimitive, 4ull * options_.cell_prims);
     if (options_.walkable) {
       const double voxel = options_.sdf_voxel > 0.0 ? options_.sdf_voxel : WalkableGridBuilder::default_voxel_size(bounds_);
       const int band = WalkableGridBuilder::band_voxels_for_radius(options_.walk_radius, voxel);
@@ -280,6 +242,9 @@ class StoreBuilder {
       return Status::invalid_argument(fmt::format("--memory {}: at least 16M is needed", options_.memory));
     }
     if (options_.threads < 0) return Status::invalid_argument("--threads must be >= 0");
+    if (!options_.tmp_dir.empty()) {
+      if (Status s = check_temp_dir(options_.tmp_dir, "--tmp-dir"); !s) return s;
+    }
     if (options_.walkable && !(options_.walk_radius > 0.0 && std::isfinite(options_.walk_radius))) {
       return Status::invalid_argument("--walk-radius must be positive");
     }
@@ -315,6 +280,60 @@ class StoreBuilder {
     }
   }
 
+  std::string output_dir() const {
+    const fs::path out(options_.output);
+    return out.has_parent_path() ? out.parent_path().string() : std::string(".");
+  }
+
+  // The temporary directory (--tmp-dir, else beside the output) and OUT.tmp, both locked for the
+  // build's life, after removing what dead builds left there (said on stderr, even when quiet).
+  Status open_temporaries() {
+    std::vector<Leftover> removed;
+    const std::string out_dir = output_dir();
+    if (!options_.tmp_dir.empty()) remove_dead_temp_dirs(out_dir, removed);  // from builds without it
+    auto temp = BuildTempDir::create(options_.tmp_dir.empty() ? out_dir : options_.tmp_dir, options_.output, removed);
+    if (!temp) return temp.status();
+    temp_.emplace(std::move(*temp));
+    auto staging = StagingLock::claim(options_.output, removed);
+    for (const Leftover& l : removed) std::fprintf(stderr, "frontier-build: %s\n", describe(l).c_str());
+    if (!staging) return staging.status();
+    staging_.emplace(std::move(*staging));
+    auto writer = store::StoreWriter::create(fsys_, options_.output);
+    if (!writer) {
+      ::unlink((options_.output + ".tmp").c_str());  // ours: claimed above
+      return writer.status();
+    }
+    writer_ = std::move(*writer);
+    return Status::ok();
+  }
+
+  // Decides whether the inputs are parsed again instead of spilled, and fails at once when the
+  // temporary folder cannot hold what the build will write there: the spill files and, on the
+  // same file system, the store; estimated from the primitives the inputs declare (or, for
+  // formats that declare none, their sizes).
+  Status check_disk_space() {
+    constexpr uint64_t kTextBytesPerPrimitive = 24, kStoreBytesDraco = 4, kStoreBytesRaw = 80;
+    uint64_t primitives = 0;
+    bool binary = true;
+    for (const std::string& in : options_.inputs) {
+      auto reader = open_scene_reader(in);
+      if (!reader) continue;  // reported by the ingest pass
+      const int64_t declared = (*reader)->declared_primitives();
+      primitives += declared >= 0 ? static_cast<uint64_t>(declared) : (*reader)->bytes_total() / kTextBytesPerPrimitive;
+      binary = binary && (*reader)->binary();
+    }
+    reparse_ = options_.reparse_binary_ply && binary;
+    const bool draco = options_.codec == CellCodec::Draco;
+    uint64_t needed = reparse_ ? 0 : primitives * kSpillBytesPerExactPrimitive;
+    if (primitives > capacity()) {  // parts, straddlers included
+      needed += primitives * 6 / 5 * (draco ? kSpillBytesPerLatticeTriangle : kSpillBytesPerExactPrimitive);
+    }
+    const bool with_store = same_file_system(temp_->path(), output_dir());
+    if (with_store) needed += primitives * (draco ? kStoreBytesDraco : kStoreBytesRaw);
+    return check_free_space(fs::path(temp_->path()).parent_path().string(), needed,
+                            with_store ? "the build's temporary files and the store" : "the build's temporary files");
+  }
+
   // The cells and portals of the single input's sidecar, kept serialized until the end. Rooms
   // and portals describe one model: with several inputs the store is no longer that model.
   Status read_portals() {
@@ -334,12 +353,6 @@ class StoreBuilder {
   // first partition pass instead: at 20 M triangles that is 1.7 GB not written and not read
   // back, for a second parse of 0.4 GB.
   Status ingest(Part& root) {
-    // An input that does not open is reported by the pass below.
-    reparse_ = options_.reparse_binary_ply &&
-               std::all_of(options_.inputs.begin(), options_.inputs.end(), [](const std::string& in) {
-                 auto reader = open_scene_reader(in);
-                 return reader && (*reader)->binary();
-               });
     SpillWriter out;
     if (!reparse_) {
       root.path = temp_->file("ingest");
@@ -381,7 +394,8 @@ class StoreBuilder {
     }
     if (!reparse_) {
       if (Status s = out.close(); !s) return s;
-      report_.spill_bytes += out.bytes();
+      root.bytes = out.bytes();
+      spilled(root.bytes);
     }
     if (bounds_.empty()) bounds_ = Aabb(Vec3(-1.0), Vec3(1.0));  // an empty model still makes a store
     if (options_.codec == CellCodec::Draco) lattice_ = Lattice::covering(bounds_, options_.quant_bits);
@@ -470,6 +484,17 @@ class StoreBuilder {
     return Status::ok();
   }
 
+  // Most primitives of one part in core: the budget less the store's tree, cell table and page
+  // handles, held until the end and then encoded into sections beside themselves (hence twice);
+  // at least four cells' worth.
+  uint64_t capacity() const {
+    if (options_.part_primitives > 0) return options_.part_primitives;
+    const uint64_t tables = 2 * (cells_.capacity() * sizeof(StoreCell) + nodes_.capacity() * sizeof(KdTree::Node) +
+                                 2 * report_.pages * sizeof(store::Handle));
+    const uint64_t free = options_.memory - std::min(options_.memory, tables);
+    return std::max<uint64_t>(free / kBytesPerPrimitive, 4ull * options_.cell_prims);
+  }
+
   // Plans median splits of `part` from its sample until every leaf's estimate fits.
   std::vector<PlanNode> plan(const Part& part) const {
     std::vector<PlanNode> nodes;
@@ -488,7 +513,7 @@ class StoreBuilder {
       const Aabb region = nodes[t.node].region;
       // Straddling primitives are written to both sides: estimate 15 % on top.
       const double estimate = 1.15 * per_sample * static_cast<double>(t.end - t.begin);
-      if (estimate <= 0.7 * static_cast<double>(capacity_) || t.end - t.begin < 64 || leaves >= kMaxFanOut) continue;
+      if (estimate <= 0.7 * static_cast<double>(capacity()) || t.end - t.begin < 64 || leaves >= kMaxFanOut) continue;
       const Vec3 e = region.extent();
       const int axis = e.x >= e.y && e.x >= e.z ? 0 : (e.y >= e.z ? 1 : 2);
       const size_t mid = t.begin + (t.end - t.begin) / 2;
@@ -520,16 +545,16 @@ class StoreBuilder {
 
   // Turns a part into cells: in core when it fits, else split on disk first.
   Status process(Part part, uint32_t depth) {
-    if (part.count <= capacity_ || depth >= 16) return build_in_core(part, depth);
+    if (part.count <= capacity() || depth >= 16) return build_in_core(part, depth);
     std::vector<PlanNode> nodes = plan(part);
+    std::vector<Vec3>().swap(part.sample);  // planned: not needed while the parts are built
     if (nodes.size() == 1) return build_in_core(part, depth);
     std::vector<Part> parts;
     if (Status s = distribute(part, nodes, parts); !s) return s;
     // A split that separated nothing (everything straddles) would recurse forever.
     bool progress = false;
     for (const Part& p : parts) progress |= p.count < part.count;
-    std::error_code ec;
-    if (!part.path.empty()) fs::remove(part.path, ec);
+    remove_spill(part);
     return emit(nodes, 0, parts, depth, progress);
   }
 
@@ -553,10 +578,13 @@ class StoreBuilder {
   Status distribute(const Part& part, std::vector<PlanNode>& nodes, std::vector<Part>& parts) {
     std::vector<std::unique_ptr<SpillWriter>> writers;
     std::vector<Reservoir> samples;
-    // The part buffers together take at most a quarter of the budget.
+    // The part buffers together take at most a quarter of the budget, their samples a sixteenth
+    // (a 1G budget keeps full samples).
     size_t leaves = 0;
     for (const PlanNode& n : nodes) leaves += n.axis < 0 ? 1 : 0;
-    const size_t buffer = std::clamp<size_t>(options_.memory / 4 / std::max<size_t>(leaves, 1), 64 << 10, kPartBuffer);
+    leaves = std::max<size_t>(leaves, 1);
+    const size_t buffer = std::clamp<size_t>(options_.memory / 4 / leaves, 64 << 10, kPartBuffer);
+    const size_t sample_size = std::clamp<size_t>(options_.memory / 16 / sizeof(Vec3) / leaves, 256, kSampleSize);
     for (PlanNode& n : nodes) {
       if (n.axis >= 0) continue;
       n.part = static_cast<int>(parts.size());
@@ -566,8 +594,8 @@ class StoreBuilder {
       p.snapped = true;
       parts.push_back(std::move(p));
       writers.push_back(std::make_unique<SpillWriter>(buffer));
-      if (Status s = writers.back()->open(parts.back().path); !s) return s;
-      samples.emplace_back(0x5eed + parts.size());
+      if (Status s = writers.back()->open(parts.back().path, spill_lattice(parts.back())); !s) return s;
+      samples.emplace_back(0x5eed + parts.size(), sample_size);
     }
     const auto t = std::chrono::steady_clock::now();
     const double scale = glm::length(part.region.extent());
@@ -605,8 +633,11 @@ class StoreBuilder {
     for (size_t k = 0; k < parts.size(); ++k) {
       if (Status s = writers[k]->close(); !s) return s;
       parts[k].count = writers[k]->records();
-      parts[k].sample = std::move(samples[k].points());
-      report_.spill_bytes += writers[k]->bytes();
+      // Only a part that is split again is planned from its sample.
+      if (parts[k].count > capacity()) parts[k].sample = std::move(samples[k].points());
+      samples[k] = Reservoir(0);
+      parts[k].bytes = writers[k]->bytes();
+      spilled(parts[k].bytes);
     }
     report_.spill_seconds += seconds_since(t);
     return Status::ok();
@@ -622,7 +653,7 @@ class StoreBuilder {
       });
     }
     SpillReader in;
-    if (Status s = in.open(part.path); !s) return s;
+    if (Status s = in.open(part.path, spill_lattice(part)); !s) return s;
     for (bool end = false; !end;) {
       Scene batch;
       if (Status s = in.read(batch, kBatch, end); !s) return s;
@@ -630,6 +661,24 @@ class StoreBuilder {
       if (!to.push(std::move(batch))) return Status::ok();  // cancelled
     }
     return Status::ok();
+  }
+
+  // Spill files on disk: the report's total and peak.
+  void spilled(uint64_t bytes) {
+    report_.spill_bytes += bytes;
+    spill_on_disk_ += bytes;
+    report_.spill_peak_bytes = std::max(report_.spill_peak_bytes, spill_on_disk_);
+  }
+  void remove_spill(const Part& part) {
+    if (part.path.empty()) return;
+    std::error_code ec;
+    fs::remove(part.path, ec);
+    spill_on_disk_ -= std::min(spill_on_disk_, part.bytes);
+  }
+
+  // The lattice a part's spill file stores positions on: the store's, once snapped to it.
+  std::optional<Lattice> spill_lattice(const Part& part) const {
+    return part.snapped && options_.codec == CellCodec::Draco ? std::optional<Lattice>(lattice_) : std::nullopt;
   }
 
   // Snaps triangles to the lattice (Draco) and drops those that lose their area; spheres and
@@ -669,8 +718,7 @@ class StoreBuilder {
                                            return Status::ok();
                                          });
     if (!loaded) return loaded;
-    std::error_code ec;
-    if (!part.path.empty()) fs::remove(part.path, ec);
+    remove_spill(part);
     ++report_.parts;
 
     KdBuildOptions kd;
@@ -701,9 +749,11 @@ class StoreBuilder {
     codec.lattice = lattice_;
     if (const char* s = std::getenv("FRONTIER_DRACO_SPEED")) codec.draco_speed = std::atoi(s);
     std::vector<Result<EncodedCell>> encoded;
+    std::vector<uint32_t> references;
     for (size_t first = 0; first < cells.size(); first += kEncodeChunk) {
       const size_t last = std::min(cells.size(), first + kEncodeChunk);
       encoded.assign(last - first, Result<EncodedCell>(Status::ok()));
+      references.assign(last - first, 0);
       arena_->execute([&] {
         tbb::parallel_for(first, last, [&](size_t c) {
           const KdTree::Cell& cell = cells[c];
@@ -718,6 +768,10 @@ class StoreBuilder {
             raw.codec = CellCodec::Raw;
             e = encode_cell(local, raw);
           }
+          if (e) {  // only the count of the decoded cell is needed: 256 of them would be megabytes
+            references[c - first] = static_cast<uint32_t>(e->decoded.size());
+            e->decoded = Scene{};
+          }
           encoded[c - first] = std::move(e);
         });
       });
@@ -731,7 +785,7 @@ class StoreBuilder {
           auto page = writer_->add_page(static_cast<uint8_t>(e->codec), e->payload);
           if (!page) return page.status();
           record.page = *page;
-          record.references = static_cast<uint32_t>(e->decoded.size());
+          record.references = references[c - first];
           report_.page_bytes += e->payload.size();
           ++report_.pages;
           if (record.references == 0) record.page = StoreCell::kNoPage;  // everything dropped
@@ -788,7 +842,8 @@ class StoreBuilder {
   }
 
   const BuildOptions& options_;
-  std::optional<TempDir> temp_;  // declared first: removed last, after the writer
+  std::optional<BuildTempDir> temp_;  // declared first: removed last, after the writer
+  std::optional<StagingLock> staging_;  // released after the writer removed or renamed OUT.tmp
   // The writer's file system outlives the writer: a failed build's writer removes NAME.tmp
   // through it when the builder is destroyed.
   store::PosixFileSystem fsys_;
@@ -799,11 +854,11 @@ class StoreBuilder {
   Aabb bounds_;
   Aabb root_region_;  // bounds_ padded: the top tree's root
   Lattice lattice_;
-  uint64_t capacity_ = 0;
   uint64_t root_count_ = 0;
   bool reparse_ = false;  // the root part is the inputs, parsed again (no ingest spill)
   std::vector<uint32_t> material_bases_;  // per input: its first material in info_.materials
   uint64_t snapped_away_ = 0;
+  uint64_t spill_on_disk_ = 0;  // bytes of the spill files that exist now
   int next_file_ = 0;
   StoreModelInfo info_;
   std::vector<KdTree::Node> nodes_;
@@ -818,6 +873,7 @@ void tune_allocator_for_build() {
   mallopt(M_TRIM_THRESHOLD, INT_MAX);
   mallopt(M_MMAP_THRESHOLD, 32 << 20);
   mallopt(M_TOP_PAD, 256 << 20);
+  mallopt(M_ARENA_MAX, 1);
 }
 
 Result<BuildReport> build_store(const BuildOptions& options) {

@@ -10,7 +10,8 @@
 //               median planes (longest axis) until every part's estimated in-core size fits
 //               the memory budget: the upper levels of the k-d tree.
 //   3. spill    one pass over the ingest file (or the inputs) snaps triangles to the lattice
-//               and writes every primitive to each part whose region its bounds overlap.
+//               and writes every primitive to each part whose region its bounds overlap
+//               (triangles as lattice indices, shared vertices once: spill.h).
 //   4. build    each part in turn: loaded, built in core by the SAH builder inside its region
 //               (cells of at most --cell-prims references), every cell encoded (in parallel)
 //               and written as one page. A part that turns out larger than planned is split
@@ -28,10 +29,15 @@
 // when a part is loaded one reads (and snaps) batches while the other sorts or gathers them.
 // At most four batches of 4096 primitives are in flight between the two.
 //
-// Memory: the spill buffers, one part in core (estimated at kBytesPerPrimitive per primitive)
-// and the pages being encoded. Temporary files live in a directory beside the output
-// (".NAME.build-XXXXXX"), removed at the end and on failure; a killed build may leave it
-// behind, and the next build of the same output removes such leftovers.
+// Temporaries (preprocess/temp_dir.h): a directory ".NAME.build-XXXXXX" in --tmp-dir or beside
+// the output, and OUT.tmp beside the output, each locked for the build's life and removed at
+// the end and on failure. A killed build leaves them behind; the next build that looks there
+// removes those no live build holds, and says so on stderr.
+//
+// Memory (--memory; the bound is peak RSS <= memory + kBuildMemoryOverhead): one part in core
+// (estimated at kBytesPerPrimitive per primitive), or a partition pass's part buffers (a quarter
+// of the budget) and samples (a sixteenth), beside the store's tree, cell table and page handles,
+// which grow with the model and leave parts less room as they do.
 #pragma once
 
 #include "src/paging/cell_codec.h"
@@ -46,6 +52,8 @@ namespace frontier {
 struct BuildOptions {
   std::vector<std::string> inputs;
   std::string output;
+  // Where the temporary directory goes (an existing, writable directory); empty: beside output.
+  std::string tmp_dir;
   uint64_t memory = uint64_t{1} << 30;  // bytes
   CellCodec codec = CellCodec::Draco;
   int quant_bits = 16;
@@ -85,6 +93,7 @@ struct BuildReport {
   uint64_t input_bytes = 0;
   uint64_t store_bytes = 0;
   uint64_t spill_bytes = 0;             // written to temporary files
+  uint64_t spill_peak_bytes = 0;        // the most of them on disk at once
   uint64_t page_bytes = 0;              // payloads of all pages
   uint64_t sdf_bytes = 0;               // the collision grid: its section and brick pages (--walkable)
   uint64_t sdf_bricks = 0;              // brick pages of the collision grid
@@ -102,6 +111,11 @@ struct BuildReport {
 // items, references and clipped bounds), measured with getrusage on the building model.
 inline constexpr uint64_t kBytesPerPrimitive = 400;
 
+// What a build's peak RSS may exceed --memory by, for any --memory of 32M or more (README): the
+// program's code and libraries (about 30 MiB resident), the window of a mapped binary PLY's
+// vertices and the fixed buffers between the reader thread and the main one.
+inline constexpr uint64_t kBuildMemoryOverhead = uint64_t{48} << 20;
+
 // Builds the store, reporting progress (rate, ETA) on stderr unless options.quiet. On failure nothing exists at options.output that was not there before
 // (an existing store is replaced only by a complete one).
 Result<BuildReport> build_store(const BuildOptions& options);
@@ -110,8 +124,10 @@ Result<BuildReport> build_store(const BuildOptions& options);
 // the mmap threshold fixed at 32 MiB) instead of returning it to the kernel and faulting it in
 // again for the next part: a 20 M-triangle build took 1.7 M page faults and 5 s of system time
 // before, 0.28 M and 2.5 s after. Peak RSS is unchanged (pages are reused, not added; the heap's
-// padding is address space until touched). Process-wide: frontier-build and bench_build call it
-// first thing in main.
+// padding is address space until touched). One malloc arena for all threads: freed memory of
+// one thread is reused by the others instead of each arena keeping its own high-water mark (a
+// 10 M-triangle build with --memory 32M peaked at 86 MiB with glibc's 8 per core, 71 with one).
+// Process-wide: frontier-build and bench_build call it first thing in main.
 void tune_allocator_for_build();
 
 }  // namespace frontier

@@ -45,7 +45,10 @@ int main(int argc, char** argv) {
   app.add_option("inputs", options.inputs, "model files (.ply .obj .off .nff .stl); several go into one store")
       ->required();
   app.add_option("-o,--output", options.output, "the store file to write")->required();
-  app.add_option("--memory", memory, "memory budget for the build, e.g. 512M, 1G (default 1G)");
+  app.add_option("--tmp-dir", options.tmp_dir,
+                 "directory for the build's temporary files (default: beside the output); leftovers of "
+                 "killed builds there are removed");
+  app.add_option("--memory", memory, "memory budget for the build, e.g. 512M, 1G (default 1G); peak RSS stays within it + 48 MiB");
   app.add_option("--codec", codec, "cell page codec: draco (default) or raw (exact doubles)")
       ->check(CLI::IsMember({"draco", "raw"}));
   app.add_option("--quant-bits", options.quant_bits, "bits per axis of the global position lattice (Draco), 8..30")
@@ -106,6 +109,11 @@ int main(int argc, char** argv) {
                              frontier::human_count(static_cast<double>(r.primitives) / std::max(r.seconds, 1e-9)),
                              r.ingest_seconds, r.spill_seconds, r.build_seconds, r.encode_seconds)
                      .c_str());
+    if (r.spill_bytes > 0) {
+      std::fprintf(stderr, "  temporary spill: %.1f MB written, at most %.1f MB on disk at once (%.1f bytes/primitive)\n",
+                   static_cast<double>(r.spill_bytes) / 1e6, static_cast<double>(r.spill_peak_bytes) / 1e6,
+                   static_cast<double>(r.spill_peak_bytes) / static_cast<double>(std::max<uint64_t>(r.primitives, 1)));
+    }
     if (options.walkable) {
       std::fprintf(stderr, "  collision grid: %.1f MB in the store (%llu bricks), %.1f MB in memory, %.1f MB spilled\n",
                    static_cast<double>(r.sdf_bytes) / 1e6, static_cast<unsigned long long>(r.sdf_bricks),

@@ -22,6 +22,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <array>
 #include <cstring>
 #include <type_traits>
@@ -151,6 +152,13 @@ class PlyReader final : public FormatReader {
   std::array<size_t, 6> field_offset_{};  // x y z nx ny nz within a record
   std::array<PlyType, 6> field_type_{};
   bool float_fast_ = false;  // mapped x y z are floats in the host byte order
+  // Mapped vertex pages count in the process's RSS: once the 64 KiB blocks touched (the kernel
+  // maps a fault's neighbours 64 KiB at a time) add up to kResidentWindow, they are dropped with
+  // MADV_DONTNEED (the page cache keeps them), so a huge vertex element costs a bounded window.
+  static constexpr size_t kResidentWindow = size_t{8} << 20;
+  std::vector<uint64_t> touched_;  // a bit per 64 KiB block of the mapping
+  size_t touched_blocks_ = 0;
+  void touch(const uint8_t* record);
 
   // Walk state.
   size_t element_ = 0;
@@ -392,6 +400,7 @@ Status PlyReader::emit_polygon(InputPrimitive& out) {
     bool finite = true;
     for (size_t k = 0; k < n; ++k) {
       const uint8_t* r = vertex_base_ + static_cast<size_t>(indices_[k]) * vertex_stride_;
+      touch(r);
       float f[3];
       std::memcpy(&f[0], r + field_offset_[0], 4);
       std::memcpy(&f[1], r + field_offset_[1], 4);
@@ -408,6 +417,20 @@ Status PlyReader::emit_polygon(InputPrimitive& out) {
   return Status::ok();
 }
 
+void PlyReader::touch(const uint8_t* record) {
+  const uintptr_t base = reinterpret_cast<uintptr_t>(map_) >> 16;
+  for (const uint8_t* at : {record, record + vertex_stride_ - 1}) {
+    const uintptr_t block = (reinterpret_cast<uintptr_t>(at) >> 16) - base;
+    uint64_t& word = touched_[block / 64];
+    if ((word >> (block % 64) & 1) != 0) continue;
+    word |= uint64_t{1} << (block % 64);
+    if (++touched_blocks_ * (size_t{1} << 16) < kResidentWindow) continue;
+    ::madvise(map_, map_size_, MADV_DONTNEED);
+    std::fill(touched_.begin(), touched_.end(), 0);
+    touched_blocks_ = 0;
+  }
+}
+
 Status PlyReader::fetch(uint32_t i, Vec3& p, Vec3* n) {
   if (vertex_base_ == nullptr) {
     p = positions_[i];
@@ -415,6 +438,7 @@ Status PlyReader::fetch(uint32_t i, Vec3& p, Vec3* n) {
     return Status::ok();
   }
   const uint8_t* r = vertex_base_ + static_cast<size_t>(i) * vertex_stride_;
+  touch(r);
   if (float_fast_) {
     float f[3];
     std::memcpy(&f[0], r + field_offset_[0], 4);
@@ -534,6 +558,7 @@ Status PlyReader::map_vertices(const Element& e) {
   }
   ::madvise(m, map_size_, MADV_WILLNEED);
   map_ = m;
+  touched_.assign((map_size_ >> 16) / 64 + 2, 0);
   vertex_base_ = static_cast<const uint8_t*>(m) + (start - map_start);
   vertex_file_offset_ = start;
   vertex_stride_ = stride;
