@@ -485,12 +485,12 @@ class StoreBuilder {
   }
 
   // Most primitives of one part in core: the budget less the store's tree, cell table and page
-  // handles, held until the end and then encoded into sections beside themselves (hence twice);
-  // at least four cells' worth.
+  // handles, held until the end (where no part is in core and their sections take as much
+  // again); at least four cells' worth.
   uint64_t capacity() const {
     if (options_.part_primitives > 0) return options_.part_primitives;
-    const uint64_t tables = 2 * (cells_.capacity() * sizeof(StoreCell) + nodes_.capacity() * sizeof(KdTree::Node) +
-                                 2 * report_.pages * sizeof(store::Handle));
+    const uint64_t tables = cells_.capacity() * sizeof(StoreCell) + nodes_.capacity() * sizeof(KdTree::Node) +
+                            2 * report_.pages * sizeof(store::Handle);
     const uint64_t free = options_.memory - std::min(options_.memory, tables);
     return std::max<uint64_t>(free / kBytesPerPrimitive, 4ull * options_.cell_prims);
   }
@@ -578,13 +578,13 @@ class StoreBuilder {
   Status distribute(const Part& part, std::vector<PlanNode>& nodes, std::vector<Part>& parts) {
     std::vector<std::unique_ptr<SpillWriter>> writers;
     std::vector<Reservoir> samples;
-    // The part buffers together take at most a quarter of the budget, their samples a sixteenth
+    // The part buffers together take at most a quarter of the budget, their samples an eighth
     // (a 1G budget keeps full samples).
     size_t leaves = 0;
     for (const PlanNode& n : nodes) leaves += n.axis < 0 ? 1 : 0;
     leaves = std::max<size_t>(leaves, 1);
     const size_t buffer = std::clamp<size_t>(options_.memory / 4 / leaves, 64 << 10, kPartBuffer);
-    const size_t sample_size = std::clamp<size_t>(options_.memory / 16 / sizeof(Vec3) / leaves, 256, kSampleSize);
+    const size_t sample_size = std::clamp<size_t>(options_.memory / 8 / sizeof(Vec3) / leaves, 1024, kSampleSize);
     for (PlanNode& n : nodes) {
       if (n.axis >= 0) continue;
       n.part = static_cast<int>(parts.size());
@@ -873,7 +873,6 @@ void tune_allocator_for_build() {
   mallopt(M_TRIM_THRESHOLD, INT_MAX);
   mallopt(M_MMAP_THRESHOLD, 32 << 20);
   mallopt(M_TOP_PAD, 256 << 20);
-  mallopt(M_ARENA_MAX, 1);
 }
 
 Result<BuildReport> build_store(const BuildOptions& options) {

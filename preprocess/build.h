@@ -36,7 +36,7 @@
 //
 // Memory (--memory; the bound is peak RSS <= memory + kBuildMemoryOverhead): one part in core
 // (estimated at kBytesPerPrimitive per primitive), or a partition pass's part buffers (a quarter
-// of the budget) and samples (a sixteenth), beside the store's tree, cell table and page handles,
+// of the budget) and samples (an eighth), beside the store's tree, cell table and page handles,
 // which grow with the model and leave parts less room as they do.
 #pragma once
 
@@ -113,8 +113,9 @@ inline constexpr uint64_t kBytesPerPrimitive = 400;
 
 // What a build's peak RSS may exceed --memory by, for any --memory of 32M or more (README): the
 // program's code and libraries (about 30 MiB resident), the window of a mapped binary PLY's
-// vertices and the fixed buffers between the reader thread and the main one.
-inline constexpr uint64_t kBuildMemoryOverhead = uint64_t{48} << 20;
+// vertices, the fixed buffers between the reader thread and the main one, and what the
+// threads' malloc arenas keep beyond what is in use.
+inline constexpr uint64_t kBuildMemoryOverhead = uint64_t{64} << 20;
 
 // Builds the store, reporting progress (rate, ETA) on stderr unless options.quiet. On failure nothing exists at options.output that was not there before
 // (an existing store is replaced only by a complete one).
@@ -124,10 +125,9 @@ Result<BuildReport> build_store(const BuildOptions& options);
 // the mmap threshold fixed at 32 MiB) instead of returning it to the kernel and faulting it in
 // again for the next part: a 20 M-triangle build took 1.7 M page faults and 5 s of system time
 // before, 0.28 M and 2.5 s after. Peak RSS is unchanged (pages are reused, not added; the heap's
-// padding is address space until touched). One malloc arena for all threads: freed memory of
-// one thread is reused by the others instead of each arena keeping its own high-water mark (a
-// 10 M-triangle build with --memory 32M peaked at 86 MiB with glibc's 8 per core, 71 with one).
-// Process-wide: frontier-build and bench_build call it first thing in main.
+// padding is address space until touched). glibc keeps its arena per thread: one arena for all
+// would save about 10 MiB of peak RSS (the threads' high-water marks add up) but costs 20 % of
+// the build time in lock contention. Process-wide: frontier-build and bench_build call it first thing in main.
 void tune_allocator_for_build();
 
 }  // namespace frontier

@@ -48,7 +48,7 @@ int main(int argc, char** argv) {
   app.add_option("--tmp-dir", options.tmp_dir,
                  "directory for the build's temporary files (default: beside the output); leftovers of "
                  "killed builds there are removed");
-  app.add_option("--memory", memory, "memory budget for the build, e.g. 512M, 1G (default 1G); peak RSS stays within it + 48 MiB");
+  app.add_option("--memory", memory, "memory budget for the build, e.g. 512M, 1G (default 1G); peak RSS stays within it + 64 MiB");
   app.add_option("--codec", codec, "cell page codec: draco (default) or raw (exact doubles)")
       ->check(CLI::IsMember({"draco", "raw"}));
   app.add_option("--quant-bits", options.quant_bits, "bits per axis of the global position lattice (Draco), 8..30")
