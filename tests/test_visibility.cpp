@@ -71,6 +71,20 @@ size_t mismatches(const Scene& scene, const View& view, const Reference& ref, co
   return bad;
 }
 
+// Renders `view` with visibility class `v` (2 threads; the other options from `o`) and expects
+// its ids to equal brute force's at every pixel but ties; the ids go to *ids when asked.
+CullCounters render_exact(const Scene& scene, const View& view, const Reference& ref, CullSource& source, Visibility v,
+                          CullOptions o = {}, std::vector<uint32_t>* ids = nullptr) {
+  o.visibility = v;
+  o.threads = 2;
+  CullingRenderer renderer(o);
+  const CullCounters c = renderer.render(view, source);
+  std::string first;
+  EXPECT_EQ(mismatches(scene, view, ref, renderer.ids(), renderer.depths(), first), 0u) << first;
+  if (ids != nullptr) *ids = renderer.ids();
+  return c;
+}
+
 Scene tessellated_spd(const std::string& name) {
   Scene scene;
   EXPECT_TRUE(load_scene(testing::spd(name), scene).is_ok());
@@ -279,13 +293,7 @@ TEST(Visibility, ClassesDrawCurvedPrimitivesAsBruteForceSeesThem) {
       for (const Visibility v : {Visibility::kExhaustive, Visibility::kFrustumCull, Visibility::kOcclusionCull,
                                  Visibility::kPortals}) {
         SCOPED_TRACE(path + " advance " + std::to_string(advance) + " " + visibility_name(v));
-        CullOptions o;
-        o.visibility = v;
-        o.threads = 2;
-        CullingRenderer renderer(o);
-        const CullCounters c = renderer.render(view, source);
-        std::string first;
-        EXPECT_EQ(mismatches(scene, view, ref, renderer.ids(), renderer.depths(), first), 0u) << first;
+        const CullCounters c = render_exact(scene, view, ref, source, v);
         EXPECT_EQ(c.skipped_primitives, 0u);
         EXPECT_EQ(c.degenerate_primitives, 0u);
         EXPECT_GT(c.curved_primitives, 0u);
@@ -316,13 +324,8 @@ TEST(Visibility, BackFaceCullingKeepsSpheresExact) {
   for (const Visibility v : kRasterizing) {
     SCOPED_TRACE(visibility_name(v));
     CullOptions o;
-    o.visibility = v;
     o.cull_back_faces = true;
-    o.threads = 2;
-    CullingRenderer renderer(o);
-    renderer.render(view, source);
-    std::string first;
-    EXPECT_EQ(mismatches(scene, view, ref, renderer.ids(), renderer.depths(), first), 0u) << first;
+    render_exact(scene, view, ref, source, v, o);
   }
 }
 
@@ -362,15 +365,9 @@ TEST(Visibility, EveryPrimitiveKindIsDrawnFromInsideABound) {
     const Reference ref(scene, view);
     for (const Visibility v : kRasterizing) {
       SCOPED_TRACE(visibility_name(v));
-      CullOptions o;
-      o.visibility = v;
-      o.threads = 2;
-      CullingRenderer renderer(o);
-      const CullCounters c = renderer.render(view, source);
-      std::string first;
-      EXPECT_EQ(mismatches(scene, view, ref, renderer.ids(), renderer.depths(), first), 0u) << first;
+      std::vector<uint32_t> ids;
+      const CullCounters c = render_exact(scene, view, ref, source, v, {}, &ids);
       EXPECT_EQ(c.skipped_primitives, 0u);
-      const std::vector<uint32_t> ids = renderer.ids();
       for (uint32_t source_id = 0; source_id < 5; ++source_id) {
         EXPECT_NE(std::find(ids.begin(), ids.end(), source_id), ids.end()) << "primitive " << source_id << " unseen";
       }
@@ -404,14 +401,9 @@ TEST(Visibility, OcclusionCullingIsNotFooledByBoundFragments) {
   const View view(testing::camera_at(Vec3(0, 0, 4), Vec3(0, 0, 0), 40.0), 97, 97);
   const Reference ref(scene, view);
   CullOptions o;
-  o.visibility = Visibility::kOcclusionCull;
-  o.threads = 2;
   o.pyramid_batch = 1;
   o.bound_slices = 3;  // a loose bound: a wide band of fragments that miss
-  CullingRenderer renderer(o);
-  const CullCounters c = renderer.render(view, source);
-  std::string first;
-  EXPECT_EQ(mismatches(scene, view, ref, renderer.ids(), renderer.depths(), first), 0u) << first;
+  const CullCounters c = render_exact(scene, view, ref, source, Visibility::kOcclusionCull, o);
   EXPECT_GT(c.subtrees_occluded, 0u) << "the sphere was meant to hide part of the floor";
   EXPECT_GT(c.surface_rays, c.surface_hits) << "some bound fragments were meant to miss";
 }
