@@ -13,6 +13,7 @@
 #include "store/page_file.h"
 #include "store/store_file.h"
 #include "tests/engine_util.h"
+#include "tests/input_files.h"
 #include "tests/process_util.h"
 #include "tests/test_files.h"
 
@@ -563,6 +564,41 @@ TEST(ViewCommand, HeadlessWalkWritesTheReport) {
   EXPECT_EQ(frames, 10);
   EXPECT_TRUE(summary);
   EXPECT_FALSE(fs::is_empty(pngs));
+}
+
+// --ids, --png and --stats with --path write the path's last frame (they were ignored before):
+// the sync-paged walk's last ids equal those of a walk whose path is that camera alone.
+TEST(ViewCommand, HeadlessWalkWritesItsLastFrame) {
+  const BuildingWalk& b = building_walk();
+  std::ifstream in(b.path);
+  std::string line, header, third;
+  for (int cameras = 0; std::getline(in, line) && cameras < 3;) {
+    if (!line.empty() && line[0] == '#') {
+      header += line + "\n";
+    } else if (!line.empty() && ++cameras == 3) {
+      third = line;
+    }
+  }
+  ASSERT_FALSE(third.empty());
+  const std::string one = testing::write_file(scratch() / "third.cam", header + third + "\n");
+  const auto walk_ids = [&](const std::string& path, const std::string& name) {
+    const fs::path ids = scratch() / (name + ".ids"), png = scratch() / (name + ".png"), stats = scratch() / (name + ".json");
+    const auto r = run_binary(FRONTIER_VIEW_PATH,
+                              {b.store, "--headless", "--path", path, "--frames", "3", "--size", "80x60", "--cache", "64M",
+                               "--sync-paging", "--threads", "2", "--ids", ids.string(), "--png", png.string(), "--stats",
+                               stats.string()},
+                              scratch());
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_TRUE(fs::exists(png)) << png;
+    EXPECT_TRUE(fs::exists(stats)) << stats;
+    std::ifstream f(ids, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(f), {});
+  };
+  const std::string walked = walk_ids(b.path, "walked");
+  const std::string still = walk_ids(one, "still");
+  ASSERT_EQ(walked.size(), size_t(80 * 60 * 4));
+  EXPECT_NE(walked, std::string(walked.size(), '\xff')) << "not all background";
+  EXPECT_EQ(walked, still);
 }
 
 // The window under Xvfb (CI installs xvfb): opens, renders frames with scripted keys... here

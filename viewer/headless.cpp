@@ -137,17 +137,22 @@ void print_summary(const ViewerOptions& o, const WalkTotals& t, const Walkthroug
   if (grid.errors > 0) fmt::print(stderr, "frontier-view: {}\n", walker->grid().error().to_string());
 }
 
+// --png, --ids and --stats of the frame `walk` rendered last (a still frame, or a path's last).
+int write_last_frame(const ViewerOptions& o, Walkthrough& walk, const FrameReport& r) {
+  Frame frame;  // only what is written: image() reconstructs, ids() maps every pixel
+  if (!o.png_path.empty()) frame.colors = walk.image();
+  if (!o.ids_path.empty()) frame.ids = walk.ids();
+  frame.stats = r.to_json();
+  return write_frame_files(o, walk.view().width, walk.view().height, frame);
+}
+
 }  // namespace
 
 int store_frame(const ViewerOptions& o, Walkthrough& walk, const Camera& camera) {
   const FrameReport r = walk.frame(camera);
   fmt::print(stderr, "{}: {} cells touched, {} paged in ({:.1f} MiB read), {:.1f} ms, {} samples\n", o.scene_path,
              r.cells_touched, r.cells_paged_in, double(r.bytes_read) / 1048576.0, r.frame_ms, r.image_samples);
-  Frame frame;  // only what is written: image() reconstructs, ids() maps every pixel
-  if (!o.png_path.empty()) frame.colors = walk.image();
-  if (!o.ids_path.empty()) frame.ids = walk.ids();
-  frame.stats = r.to_json();
-  return write_frame_files(o, walk.view().width, walk.view().height, frame);
+  return write_last_frame(o, walk, r);
 }
 
 int walk_headless(const ViewerOptions& o, Walkthrough& walk, const Camera& start) {
@@ -164,9 +169,10 @@ int walk_headless(const ViewerOptions& o, Walkthrough& walk, const Camera& start
   const size_t png_every = o.png_every > 0 ? size_t(o.png_every) : std::max<size_t>(1, frames / 4);
   WalkTotals totals;
   Vec3 eye = path->front().eye;
+  FrameReport r;
   for (size_t f = 0; f < frames; ++f) {
     const Camera& planned = (*path)[std::min(f, path->size() - 1)];
-    FrameReport r = walk.frame(walker ? walked(*walker, planned, f, eye) : planned);
+    r = walk.frame(walker ? walked(*walker, planned, f, eye) : planned);
     if (walker) r.add_walk_counters(*walker);
     totals.add(r);
     if (report.is_open()) report << r.to_json().dump() << "\n";
@@ -180,7 +186,7 @@ int walk_headless(const ViewerOptions& o, Walkthrough& walk, const Camera& start
     if (!report) return fail(Status::io_error(o.report_path + ": cannot write"));
   }
   print_summary(o, totals, walk, walker);
-  return 0;
+  return write_last_frame(o, walk, r);
 }
 
 }  // namespace frontier

@@ -48,13 +48,13 @@ void add_store_options(CLI::App& app, ViewerOptions& o) {
 }
 
 constexpr const char* kIdsHelp =
-    "one frame: write the first-hit input primitive per pixel (uint32 little-endian, row-major, "
+    "the frame (with --path: the last frame): write the first-hit input primitive per pixel (uint32 little-endian, row-major, "
     "0xFFFFFFFF = background)";
 
 void add_frame_options(CLI::App& app, ViewerOptions& o) {
-  app.add_option("--png", o.png_path, "one frame: write the image as PNG");
+  app.add_option("--png", o.png_path, "the frame (with --path: the last frame): write the image as PNG");
   app.add_option("--ids", o.ids_path, kIdsHelp);
-  app.add_option("--stats", o.stats_path, "one frame: write counters as JSON");
+  app.add_option("--stats", o.stats_path, "the frame (with --path: the last frame): write counters as JSON");
 }
 
 void add_method_options(CLI::App& app, ViewerOptions& o) {
