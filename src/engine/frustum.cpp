@@ -119,6 +119,7 @@ void FrustumCaster::reset_workers(size_t pixels) {
     w->arena_out.clear();
     w->remaining.clear();
     w->parked.clear();
+    w->reopen.clear();
     w->next_cells.clear();
   }
 }
@@ -271,6 +272,27 @@ void FrustumCaster::park(const Job& job, Worker& w) const {
   w.parked.push_back(parked);
 }
 
+// A pixel whose sample must wait for a missing cell: resolved again, alone, from the eye.
+void FrustumCaster::park_pixel(int x, int y, Worker& w) const {
+  Job job;
+  job.x0 = job.x1 = x;
+  job.y0 = job.y1 = y;
+  park(job, w);
+}
+
+// Pixels whose shadow rays crossed missing cells become unsampled again and wait, each alone,
+// for those cells (resume_parked() resolves them again from the eye).
+void FrustumCaster::reopen_unshaded() {
+  const uint32_t W = static_cast<uint32_t>(view_.width);
+  for (auto& w : workers_) {
+    for (const uint32_t i : w->reopen) {
+      buffer_->unconfirm(i);
+      park_pixel(int(i % W), int(i / W), *w);
+    }
+    w->reopen.clear();
+  }
+}
+
 void FrustumCaster::tree_changed() {
   const size_t cells = tree_.cells().size();
   marks_->grow(cells);
@@ -351,6 +373,7 @@ bool FrustumCaster::run(const FrameBudget& budget, Counters& counters) {
     }
     interrupted = !current_.empty();
   }
+  reopen_unshaded();
   for (auto& w : workers_) counters += w->counters;
   counters.ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return complete();
@@ -418,12 +441,26 @@ bool FrustumCaster::claim(const Job& job, int x, int y, size_t i) const {
 }
 
 // Writes pixel (x, y)'s hit (kNoPrim: background) and its shade, at most once per frame.
+// In a paged scene the shadow rays of a hit may cross missing cells: then the pixel is shaded
+// before it is claimed, and reopened instead of written when its colour is not final.
 void FrustumCaster::confirm(const Job& job, int x, int y, uint32_t prim, double t, const Ray& ray, Worker& w) {
   const size_t i = static_cast<size_t>(y) * static_cast<size_t>(view_.width) + static_cast<size_t>(x);
-  if (!claim(job, x, y, i)) return;
-  const Rgb color = prim == kNoPrim ? shader_.background()
-                    : shade_        ? shader_.shade(prim, ray, t, shadows_, w.counters)
-                                    : Rgb{};
+  Rgb color;
+  if (gate_ != nullptr && prim != kNoPrim && shade_ && shadows_ && shader_.effects().shadows) {
+    if (buffer_->confirmed(i)) return;
+    ShadowCells cells{gate_, marks_};
+    color = shader_.shade(prim, ray, t, true, w.counters, &cells);
+    if (!claim(job, x, y, i)) return;
+    if (cells.missing) {
+      // Claimed, so that this job and its neighbours go on without it; reopened and parked
+      // when the slice ends (reopen_unshaded).
+      w.reopen.push_back(static_cast<uint32_t>(i));
+      return;
+    }
+  } else {
+    if (!claim(job, x, y, i)) return;
+    color = prim == kNoPrim ? shader_.background() : shade_ ? shader_.shade(prim, ray, t, shadows_, w.counters) : Rgb{};
+  }
   buffer_->set(i, prim, t, color);
   ++w.counters.samples;
   ++w.counters.rays;

@@ -46,6 +46,7 @@
 #pragma once
 
 #include "src/core/counters.h"
+#include "src/engine/cell_gate.h"
 #include "src/engine/kdtree.h"
 #include "src/engine/ray_walk.h"
 #include "src/core/sample_buffer.h"
@@ -66,16 +67,6 @@ namespace frontier {
 struct FrameBudget {
   double ms = 0.0;       // 0: no time limit
   uint64_t samples = 0;  // 0: no sample limit
-};
-
-// Out-of-core rendering (PagedWorld): cells whose geometry is not in memory yet. Work that
-// reaches such a cell is parked and want() asks for the cell; nothing is ever resolved past a
-// missing cell, so every confirmed sample stays exact. Both calls come from worker threads.
-class CellGate {
- public:
-  virtual ~CellGate() = default;
-  virtual bool missing(int32_t cell) const = 0;
-  virtual void want(int32_t cell) = 0;
 };
 
 class FrustumCaster {
@@ -184,6 +175,8 @@ class FrustumCaster {
   void fill_from_plane(const Job& job, uint32_t element, const Vec3& normal, Worker& w);
   bool coplanar(uint32_t prim, uint32_t element, const Vec3& normal) const;
   void split(const Job& job, const Incidence* list, uint32_t n, Worker& w);
+  void park_pixel(int x, int y, Worker& w) const;
+  void reopen_unshaded();
   bool claim(const Job& job, int x, int y, size_t i) const;
   void confirm(const Job& job, int x, int y, uint32_t prim, double t, const Ray& ray, Worker& w);
   void finish_level();
