@@ -75,6 +75,7 @@ void FrustumCaster::begin(const View& view, SampleBuffer& buffer, CellMarks& mar
   reset_workers(view.pixels());
   arenas_in_.clear();
   current_.clear();
+  held_.clear();
   if (anchor_width_ != view.width || anchor_height_ != view.height) plan_anchors(view.width, view.height);
   anchors_next_ = 0;
   queue_root();
@@ -249,7 +250,9 @@ bool FrustumCaster::runnable() const {
   return false;
 }
 
-bool FrustumCaster::complete() const { return !runnable() && parked() == 0; }
+size_t FrustumCaster::held() const { return held_.size(); }
+
+bool FrustumCaster::complete() const { return !runnable() && parked() == 0 && held_.empty(); }
 
 size_t FrustumCaster::parked() const {
   size_t n = 0;
@@ -325,6 +328,45 @@ void FrustumCaster::resume_parked() {
     w->parked.clear();
   }
   level_ordered_ = false;
+}
+
+void FrustumCaster::renumbered() {
+  ++frame_;  // every cell's incidence list and first-visit stamp is stale
+  arenas_in_.clear();
+  marks_->resize(tree_.cells().size());
+  marks_->begin_frame();
+  tree_changed();
+}
+
+uint64_t FrustumCaster::hold_parked(uint64_t pixels) {
+  auto area = [](const Job& j) { return uint64_t(j.x1 - j.x0 + 1) * uint64_t(j.y1 - j.y0 + 1); };
+  std::vector<Job> jobs;
+  jobs.swap(held_);
+  for (auto& w : workers_) {
+    jobs.insert(jobs.end(), w->parked.begin(), w->parked.end());
+    w->parked.clear();
+  }
+  order_level(jobs, false);
+  // The first job alone is larger than asked for: its halves (across its longer side, sharing
+  // no pixel, so that every job of more than one pixel splits) take its place.
+  while (!jobs.empty() && area(jobs.front()) > std::max<uint64_t>(pixels, 1)) {
+    Job first = jobs.front(), second = first;
+    if (first.x1 - first.x0 >= first.y1 - first.y0) {
+      first.x1 = (first.x0 + first.x1) / 2;
+      second.x0 = first.x1 + 1;
+    } else {
+      first.y1 = (first.y0 + first.y1) / 2;
+      second.y0 = first.y1 + 1;
+    }
+    jobs.front() = second;
+    jobs.insert(jobs.begin(), first);
+  }
+  uint64_t taken = 0;
+  size_t k = 0;
+  while (k < jobs.size() && (k == 0 || taken + area(jobs[k]) <= pixels)) taken += area(jobs[k++]);
+  workers_.front()->parked.assign(jobs.begin(), jobs.begin() + std::ptrdiff_t(k));
+  held_.assign(jobs.begin() + std::ptrdiff_t(k), jobs.end());
+  return taken;
 }
 
 bool FrustumCaster::run(const FrameBudget& budget, Counters& counters) {

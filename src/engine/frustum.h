@@ -109,6 +109,20 @@ class FrustumCaster {
   size_t parked() const;
   void resume_parked();
 
+  // Frames whose cells do not all fit in memory at once are rendered in passes, each over a
+  // part of the parked work (Walkthrough). Confirmed pixels stay confirmed across passes.
+  // REQUIRES for both: no run() in progress and nothing runnable (only parked work left).
+  // renumbered(): the tree's cells were renumbered (compacted) since the last slice: this
+  // frame's per-cell state (marks, incidence lists) is dropped; parked work is kept.
+  void renumbered();
+  // Orders the parked and held work by screen position (Z order) and leaves parked only the
+  // first jobs of at most `pixels` pixels in all (at least one job; a first job larger than
+  // that is split in halves until it fits); the rest is held back from
+  // resume_parked() until a later call. Returns the pixels of the jobs left parked.
+  uint64_t hold_parked(uint64_t pixels);
+  // Jobs held back by hold_parked(); complete() is false while there are any.
+  size_t held() const;
+
  private:
   struct Job;
   struct Incidence;
@@ -232,6 +246,7 @@ class FrustumCaster {
   size_t anchors_next_ = 0;        // first anchor of this image not yet walked
 
   std::vector<Job> current_;                      // jobs of the current level not yet run
+  std::vector<Job> held_;                         // parked work held back (hold_parked)
   bool level_ordered_ = false;                    // current_ is in order_level's order
   std::vector<std::vector<Incidence>> arenas_in_;  // incidence lists the current level reads
   std::vector<std::unique_ptr<Worker>> workers_;
