@@ -47,13 +47,19 @@ std::string store_of(const std::string& model, const std::string& name) {
   return out;
 }
 
-std::vector<Rgb> frame_png(const std::vector<std::string>& args, const std::string& name) {
-  const std::string png = (scratch() / (name + ".png")).string();
-  std::vector<std::string> all = args;
-  for (const char* a : {"--headless", "--size", "96x96", "--threads", "2", "--png"}) all.emplace_back(a);
-  all.push_back(png);
-  const auto r = run_binary(FRONTIER_VIEW_PATH, all, scratch());
+// Runs frontier-view headless on `args` at `size`, writing `output` (--png or --stats) to the
+// scratch file `name`, whose path it returns.
+std::string view_frame(std::vector<std::string> args, const char* size, const char* output, const std::string& name) {
+  const std::string file = (scratch() / name).string();
+  for (const char* a : {"--headless", "--threads", "2", "--size", size, output}) args.emplace_back(a);
+  args.push_back(file);
+  const auto r = run_binary(FRONTIER_VIEW_PATH, args, scratch());
   EXPECT_EQ(r.exit_code, 0) << r.err;
+  return file;
+}
+
+std::vector<Rgb> frame_png(const std::vector<std::string>& args, const std::string& name) {
+  const std::string png = view_frame(args, "96x96", "--png", name + ".png");
   int w = 0, h = 0;
   std::vector<Rgb> pixels;
   EXPECT_TRUE(read_png(png, w, h, pixels).is_ok()) << png;
@@ -61,13 +67,7 @@ std::vector<Rgb> frame_png(const std::vector<std::string>& args, const std::stri
 }
 
 nlohmann::json frame_stats(const std::vector<std::string>& args, const std::string& name) {
-  const std::string stats = (scratch() / (name + ".json")).string();
-  std::vector<std::string> all = args;
-  for (const char* a : {"--headless", "--size", "48x48", "--threads", "2", "--stats"}) all.emplace_back(a);
-  all.push_back(stats);
-  const auto r = run_binary(FRONTIER_VIEW_PATH, all, scratch());
-  EXPECT_EQ(r.exit_code, 0) << r.err;
-  std::ifstream in(stats);
+  std::ifstream in(view_frame(args, "48x48", "--stats", name + ".json"));
   std::stringstream text;
   text << in.rdbuf();
   return nlohmann::json::parse(text.str(), nullptr, false);
