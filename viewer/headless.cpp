@@ -71,8 +71,16 @@ struct WalkTotals {
   double samples = 0.0, ratio_sum = 0.0, ratio_max = 0.0;
   uint64_t bytes_read = 0, ratio_frames = 0, errors = 0, resident_max = 0, collision_max = 0;
   uint64_t complete = 0, floor_frames = 0;
+  // Thrashing (FrameReport::thrashing): frames, the largest working set and the cache it needs.
+  uint64_t thrashing = 0, unfit = 0, cells_reread = 0, working_set_max = 0, cache_needed = 0, frame_read_max = 0;
 
   void add(const FrameReport& r) {
+    thrashing += r.thrashing ? 1 : 0;
+    unfit += r.unfit ? 1 : 0;
+    cells_reread += r.cells_reread;
+    working_set_max = std::max(working_set_max, r.working_set_bytes);
+    cache_needed = std::max(cache_needed, r.cache_needed);
+    frame_read_max = std::max(frame_read_max, r.bytes_read);
     frame_ms.push_back(r.frame_ms);
     samples += double(r.samples);
     bytes_read += r.bytes_read;
@@ -109,7 +117,12 @@ nlohmann::json summary_json(const ViewerOptions& o, const WalkTotals& t, const W
                             {"max_collision_bytes", t.collision_max},
                             {"collision_cache_budget", walker ? o.collision_cache : 0},
                             {"collision_loads", grid.loads},
-                            {"collision_errors", grid.errors}};
+                            {"collision_errors", grid.errors},
+                            {"thrashing_frames", t.thrashing},
+                            {"unfit_frames", t.unfit},
+                            {"cells_reread", t.cells_reread},
+                            {"max_working_set_bytes", t.working_set_max},
+                            {"cache_needed", t.cache_needed}};
   if (t.ratio_frames > 0) {
     summary["mean_touched_oracle_ratio"] = t.ratio_sum / double(t.ratio_frames);
     summary["max_touched_oracle_ratio"] = t.ratio_max;
@@ -146,12 +159,33 @@ int write_last_frame(const ViewerOptions& o, Walkthrough& walk, const FrameRepor
   return write_frame_files(o, walk.view().width, walk.view().height, frame);
 }
 
+// Once a run, when frames thrashed: by how much, and the --cache that holds the largest frame.
+void print_thrashing(const ViewerOptions& o, const WalkTotals& t, const Walkthrough& walk) {
+  if (t.thrashing == 0) return;
+  const double mib = 1048576.0;
+  fmt::print(stderr,
+             "frontier-view: thrashing in {} of {} frames: a frame's cells take up to {:.1f} MiB decoded, more than "
+             "the {:.1f} MiB that --cache {} holds for decoded cells, so frames page cells in again ({} cells re-read "
+             "within a frame, up to {:.1f} MiB read from the store in one frame); use --cache {:.0f}M or more\n",
+             t.thrashing, t.frames(), double(t.working_set_max) / mib, double(walk.world().decoded_budget()) / mib,
+             o.cache_text, t.cells_reread, double(t.frame_read_max) / mib, double(t.cache_needed) / mib);
+  if (t.unfit > 0) {
+    fmt::print(stderr,
+               "frontier-view: {} frames could not complete: the cells one pixel's rays cross do not fit in --cache {}; "
+               "use --cache {:.0f}M or more\n",
+               t.unfit, o.cache_text, double(t.cache_needed) / mib);
+  }
+}
+
 }  // namespace
 
 int store_frame(const ViewerOptions& o, Walkthrough& walk, const Camera& camera) {
-  const FrameReport r = walk.frame(camera);
+  const FrameReport r = walk.still_frame(camera);
   fmt::print(stderr, "{}: {} cells touched, {} paged in ({:.1f} MiB read), {:.1f} ms, {} samples\n", o.scene_path,
              r.cells_touched, r.cells_paged_in, double(r.bytes_read) / 1048576.0, r.frame_ms, r.image_samples);
+  WalkTotals totals;
+  totals.add(r);
+  print_thrashing(o, totals, walk);
   return write_last_frame(o, walk, r);
 }
 
@@ -186,6 +220,7 @@ int walk_headless(const ViewerOptions& o, Walkthrough& walk, const Camera& start
     if (!report) return fail(Status::io_error(o.report_path + ": cannot write"));
   }
   print_summary(o, totals, walk, walker);
+  print_thrashing(o, totals, walk);
   return write_last_frame(o, walk, r);
 }
 

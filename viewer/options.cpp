@@ -27,7 +27,9 @@ void add_scene_options(CLI::App& app, ViewerOptions& o) {
 }
 
 void add_store_options(CLI::App& app, ViewerOptions& o) {
-  app.add_option("--cache", o.cache_text, "store: memory budget for paged cells, compressed and decoded (e.g. 512M, 2G)");
+  app.add_option("--cache", o.cache_text,
+                 "store: memory budget for paged cells, compressed (an eighth) and decoded (e.g. 512M, 2G); frames "
+                 "whose cells exceed it thrash (the report's thrashing and cache_needed)");
   app.add_option("--collision-cache", o.collision_cache_text,
                  "walk mode: memory budget for the collision grid's bricks, paged in as the walker reaches them "
                  "(default 64M)");
@@ -39,7 +41,9 @@ void add_store_options(CLI::App& app, ViewerOptions& o) {
   app.add_option("--png-every", o.png_every, "with --png-dir: every Nth frame (default: frames/4) and the last")
       ->check(CLI::PositiveNumber);
   app.add_flag("--oracle", o.oracle, "store: count oracle_cells, the cells exact per-pixel rays pass before their first hit");
-  app.add_flag("--sync-paging", o.sync_paging, "store: wait for every page a frame needs (exact, complete frames)");
+  app.add_flag("--sync-paging", o.sync_paging,
+               "store: wait for every page a frame needs (exact, complete frames; a frame whose cells exceed "
+               "--cache is rendered in passes and reported as thrashing, with the --cache it needs)");
   app.add_flag("--walk", o.walk, "store: walk mode along the path (gravity, collision); the store must be --walkable");
   app.add_option("--eye-height", o.eye_height, "walk mode: eye height above the floor")->check(CLI::PositiveNumber);
   app.add_option("--radius", o.radius, "walk mode: clearance kept from geometry (default: the store's)")

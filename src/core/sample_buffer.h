@@ -46,6 +46,8 @@ class SampleBuffer {
     stamp_[i].store(frame_, std::memory_order_relaxed);
     return true;
   }
+  // Makes a confirmed pixel unsampled again in this frame. Only while no thread claims.
+  void unconfirm(size_t i) { stamp_[i].store(frame_ - 1, std::memory_order_relaxed); }
   void set(size_t i, uint32_t prim, double t, Rgb color) {
     prim_[i] = prim;
     t_[i] = t;

@@ -75,6 +75,7 @@ void FrustumCaster::begin(const View& view, SampleBuffer& buffer, CellMarks& mar
   reset_workers(view.pixels());
   arenas_in_.clear();
   current_.clear();
+  held_.clear();
   if (anchor_width_ != view.width || anchor_height_ != view.height) plan_anchors(view.width, view.height);
   anchors_next_ = 0;
   queue_root();
@@ -119,6 +120,7 @@ void FrustumCaster::reset_workers(size_t pixels) {
     w->arena_out.clear();
     w->remaining.clear();
     w->parked.clear();
+    w->reopen.clear();
     w->next_cells.clear();
   }
 }
@@ -248,7 +250,9 @@ bool FrustumCaster::runnable() const {
   return false;
 }
 
-bool FrustumCaster::complete() const { return !runnable() && parked() == 0; }
+size_t FrustumCaster::held() const { return held_.size(); }
+
+bool FrustumCaster::complete() const { return !runnable() && parked() == 0 && held_.empty(); }
 
 size_t FrustumCaster::parked() const {
   size_t n = 0;
@@ -269,6 +273,27 @@ void FrustumCaster::park(const Job& job, Worker& w) const {
   parked.state = kFresh;
   parked.inc_count = 0;
   w.parked.push_back(parked);
+}
+
+// A pixel whose sample must wait for a missing cell: resolved again, alone, from the eye.
+void FrustumCaster::park_pixel(int x, int y, Worker& w) const {
+  Job job;
+  job.x0 = job.x1 = x;
+  job.y0 = job.y1 = y;
+  park(job, w);
+}
+
+// Pixels whose shadow rays crossed missing cells become unsampled again and wait, each alone,
+// for those cells (resume_parked() resolves them again from the eye).
+void FrustumCaster::reopen_unshaded() {
+  const uint32_t W = static_cast<uint32_t>(view_.width);
+  for (auto& w : workers_) {
+    for (const uint32_t i : w->reopen) {
+      buffer_->unconfirm(i);
+      park_pixel(int(i % W), int(i / W), *w);
+    }
+    w->reopen.clear();
+  }
 }
 
 void FrustumCaster::tree_changed() {
@@ -303,6 +328,45 @@ void FrustumCaster::resume_parked() {
     w->parked.clear();
   }
   level_ordered_ = false;
+}
+
+void FrustumCaster::renumbered() {
+  ++frame_;  // every cell's incidence list and first-visit stamp is stale
+  arenas_in_.clear();
+  marks_->resize(tree_.cells().size());
+  marks_->begin_frame();
+  tree_changed();
+}
+
+uint64_t FrustumCaster::hold_parked(uint64_t pixels) {
+  auto area = [](const Job& j) { return uint64_t(j.x1 - j.x0 + 1) * uint64_t(j.y1 - j.y0 + 1); };
+  std::vector<Job> jobs;
+  jobs.swap(held_);
+  for (auto& w : workers_) {
+    jobs.insert(jobs.end(), w->parked.begin(), w->parked.end());
+    w->parked.clear();
+  }
+  order_level(jobs, false);
+  // The first job alone is larger than asked for: its halves (across its longer side, sharing
+  // no pixel, so that every job of more than one pixel splits) take its place.
+  while (!jobs.empty() && area(jobs.front()) > std::max<uint64_t>(pixels, 1)) {
+    Job first = jobs.front(), second = first;
+    if (first.x1 - first.x0 >= first.y1 - first.y0) {
+      first.x1 = (first.x0 + first.x1) / 2;
+      second.x0 = first.x1 + 1;
+    } else {
+      first.y1 = (first.y0 + first.y1) / 2;
+      second.y0 = first.y1 + 1;
+    }
+    jobs.front() = second;
+    jobs.insert(jobs.begin(), first);
+  }
+  uint64_t taken = 0;
+  size_t k = 0;
+  while (k < jobs.size() && (k == 0 || taken + area(jobs[k]) <= pixels)) taken += area(jobs[k++]);
+  workers_.front()->parked.assign(jobs.begin(), jobs.begin() + std::ptrdiff_t(k));
+  held_.assign(jobs.begin() + std::ptrdiff_t(k), jobs.end());
+  return taken;
 }
 
 bool FrustumCaster::run(const FrameBudget& budget, Counters& counters) {
@@ -351,6 +415,7 @@ bool FrustumCaster::run(const FrameBudget& budget, Counters& counters) {
     }
     interrupted = !current_.empty();
   }
+  reopen_unshaded();
   for (auto& w : workers_) counters += w->counters;
   counters.ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return complete();
@@ -418,12 +483,26 @@ bool FrustumCaster::claim(const Job& job, int x, int y, size_t i) const {
 }
 
 // Writes pixel (x, y)'s hit (kNoPrim: background) and its shade, at most once per frame.
+// In a paged scene the shadow rays of a hit may cross missing cells: then the pixel is shaded
+// before it is claimed, and reopened instead of written when its colour is not final.
 void FrustumCaster::confirm(const Job& job, int x, int y, uint32_t prim, double t, const Ray& ray, Worker& w) {
   const size_t i = static_cast<size_t>(y) * static_cast<size_t>(view_.width) + static_cast<size_t>(x);
-  if (!claim(job, x, y, i)) return;
-  const Rgb color = prim == kNoPrim ? shader_.background()
-                    : shade_        ? shader_.shade(prim, ray, t, shadows_, w.counters)
-                                    : Rgb{};
+  Rgb color;
+  if (gate_ != nullptr && prim != kNoPrim && shade_ && shadows_ && shader_.effects().shadows) {
+    if (buffer_->confirmed(i)) return;
+    ShadowCells cells{gate_, marks_};
+    color = shader_.shade(prim, ray, t, true, w.counters, &cells);
+    if (!claim(job, x, y, i)) return;
+    if (cells.missing) {
+      // Claimed, so that this job and its neighbours go on without it; reopened and parked
+      // when the slice ends (reopen_unshaded).
+      w.reopen.push_back(static_cast<uint32_t>(i));
+      return;
+    }
+  } else {
+    if (!claim(job, x, y, i)) return;
+    color = prim == kNoPrim ? shader_.background() : shade_ ? shader_.shade(prim, ray, t, shadows_, w.counters) : Rgb{};
+  }
   buffer_->set(i, prim, t, color);
   ++w.counters.samples;
   ++w.counters.rays;

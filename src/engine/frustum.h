@@ -46,6 +46,7 @@
 #pragma once
 
 #include "src/core/counters.h"
+#include "src/engine/cell_gate.h"
 #include "src/engine/kdtree.h"
 #include "src/engine/ray_walk.h"
 #include "src/core/sample_buffer.h"
@@ -66,16 +67,6 @@ namespace frontier {
 struct FrameBudget {
   double ms = 0.0;       // 0: no time limit
   uint64_t samples = 0;  // 0: no sample limit
-};
-
-// Out-of-core rendering (PagedWorld): cells whose geometry is not in memory yet. Work that
-// reaches such a cell is parked and want() asks for the cell; nothing is ever resolved past a
-// missing cell, so every confirmed sample stays exact. Both calls come from worker threads.
-class CellGate {
- public:
-  virtual ~CellGate() = default;
-  virtual bool missing(int32_t cell) const = 0;
-  virtual void want(int32_t cell) = 0;
 };
 
 class FrustumCaster {
@@ -117,6 +108,20 @@ class FrustumCaster {
   void tree_changed();
   size_t parked() const;
   void resume_parked();
+
+  // Frames whose cells do not all fit in memory at once are rendered in passes, each over a
+  // part of the parked work (Walkthrough). Confirmed pixels stay confirmed across passes.
+  // REQUIRES for both: no run() in progress and nothing runnable (only parked work left).
+  // renumbered(): the tree's cells were renumbered (compacted) since the last slice: this
+  // frame's per-cell state (marks, incidence lists) is dropped; parked work is kept.
+  void renumbered();
+  // Orders the parked and held work by screen position (Z order) and leaves parked only the
+  // first jobs of at most `pixels` pixels in all (at least one job; a first job larger than
+  // that is split in halves until it fits); the rest is held back from
+  // resume_parked() until a later call. Returns the pixels of the jobs left parked.
+  uint64_t hold_parked(uint64_t pixels);
+  // Jobs held back by hold_parked(); complete() is false while there are any.
+  size_t held() const;
 
  private:
   struct Job;
@@ -184,6 +189,8 @@ class FrustumCaster {
   void fill_from_plane(const Job& job, uint32_t element, const Vec3& normal, Worker& w);
   bool coplanar(uint32_t prim, uint32_t element, const Vec3& normal) const;
   void split(const Job& job, const Incidence* list, uint32_t n, Worker& w);
+  void park_pixel(int x, int y, Worker& w) const;
+  void reopen_unshaded();
   bool claim(const Job& job, int x, int y, size_t i) const;
   void confirm(const Job& job, int x, int y, uint32_t prim, double t, const Ray& ray, Worker& w);
   void finish_level();
@@ -239,6 +246,7 @@ class FrustumCaster {
   size_t anchors_next_ = 0;        // first anchor of this image not yet walked
 
   std::vector<Job> current_;                      // jobs of the current level not yet run
+  std::vector<Job> held_;                         // parked work held back (hold_parked)
   bool level_ordered_ = false;                    // current_ is in order_level's order
   std::vector<std::vector<Incidence>> arenas_in_;  // incidence lists the current level reads
   std::vector<std::unique_ptr<Worker>> workers_;

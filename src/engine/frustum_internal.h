@@ -130,6 +130,7 @@ struct FrustumCaster::Worker {
   std::vector<Incidence> arena_out;          // incidence lists of those children
   std::vector<Job> remaining;                // jobs skipped because the budget ran out
   std::vector<Job> parked;                   // jobs that reached a missing cell (paging)
+  std::vector<uint32_t> reopen;              // pixels claimed whose shadow rays need missing cells
   std::vector<Incidence> scratch;            // a freshly collected list
   std::vector<double> fill_t;                // per-pixel hits of the fill element
   std::vector<uint32_t> occluders;

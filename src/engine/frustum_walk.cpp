@@ -49,10 +49,7 @@ RayHit FrustumCaster::walk_pixel(int x, int y, const Ray& ray, double tmin, int3
     ++w.counters.cell_visits;
     if (marks_->mark(cell)) ++w.counters.cells_touched;
     if (gate_missing(cell)) {
-      Job job;
-      job.x0 = job.x1 = x;
-      job.y0 = job.y1 = y;
-      park(job, w);
+      park_pixel(x, y, w);
       parked = true;
       return {};
     }

@@ -70,6 +70,11 @@ RayHit cast_ray(const Scene& scene, const KdTree& tree, const Ray& ray, double t
 
 bool occluded(const Scene& scene, const KdTree& tree, const Ray& ray, double tmin, double tmax,
               Counters& counters) {
+  return occlusion(scene, tree, ray, tmin, tmax, counters, nullptr, nullptr) == Occlusion::kBlocked;
+}
+
+Occlusion occlusion(const Scene& scene, const KdTree& tree, const Ray& ray, double tmin, double tmax,
+                    Counters& counters, CellGate* gate, CellMarks* marks) {
   ++counters.shadow_rays;
   int32_t cell = tree.locate(ray.at(tmin), ray.dir);
   if (cell == KdTree::kNone) {
@@ -77,22 +82,29 @@ bool occluded(const Scene& scene, const KdTree& tree, const Ray& ray, double tmi
     int face;
     cell = tree.enter_root(ray, tmin, t_enter, face);
   }
+  bool missing = false;
   size_t steps_left = tree.cells().size() + 16;
   while (cell != KdTree::kNone && steps_left-- > 0) {
+    if (marks != nullptr && marks->mark(cell)) ++counters.cells_touched;
+    if (gate != nullptr && gate->missing(cell)) {
+      // Undecided here; a primitive farther along may still block the segment.
+      gate->want(cell);
+      missing = true;
+    }
     const KdTree::Cell& c = tree.cell(cell);
     for (uint32_t r = c.first; r < c.first + c.count; ++r) {
       double t;
       ++counters.ray_primitive_tests;
       if (scene.intersect(tree.ref(r), ray, tmin, tmax, t)) {
         ++counters.hits;
-        return true;
+        return Occlusion::kBlocked;
       }
     }
     const KdTree::Exit e = tree.exit(cell, ray);
-    if (e.t >= tmax) return false;
+    if (e.t >= tmax) break;
     cell = tree.arrival(cell, ray, e);
   }
-  return false;
+  return missing ? Occlusion::kMissing : Occlusion::kClear;
 }
 
 }  // namespace frontier

@@ -8,6 +8,7 @@
 #pragma once
 
 #include "src/core/counters.h"
+#include "src/engine/cell_gate.h"
 #include "src/engine/kdtree.h"
 #include "src/core/sample_buffer.h"
 #include "src/core/scene.h"
@@ -58,6 +59,15 @@ RayHit cast_ray(const Scene& scene, const KdTree& tree, const Ray& ray, double t
 // True if any primitive blocks the segment (tmin, tmax) of the ray (shadow rays).
 bool occluded(const Scene& scene, const KdTree& tree, const Ray& ray, double tmin, double tmax,
               Counters& counters);
+
+// A shadow ray in a tree whose cells may be missing (CellGate): blocked when a primitive in
+// memory blocks the segment; else missing when the segment crosses a missing cell (each one
+// crossed is wanted: the answer depends on it); else clear. The cells it enters are marked in
+// `marks` when non-null (they belong to the frame's working set). Without a gate it is
+// occluded().
+enum class Occlusion : uint8_t { kClear, kBlocked, kMissing };
+Occlusion occlusion(const Scene& scene, const KdTree& tree, const Ray& ray, double tmin, double tmax,
+                    Counters& counters, CellGate* gate, CellMarks* marks);
 
 // Nearest hit among the references [first, first+count) of a cell with tmin <= t <= tmax.
 RayHit nearest_in_refs(const Scene& scene, const KdTree& tree, uint32_t first, uint32_t count,

@@ -26,24 +26,25 @@ Rgb Shader::background() const {
   return {float(scene_.background.x), float(scene_.background.y), float(scene_.background.z)};
 }
 
-Rgb Shader::shade(uint32_t prim, const Ray& ray, double t, bool with_shadows, Counters& counters) const {
+Rgb Shader::shade(uint32_t prim, const Ray& ray, double t, bool with_shadows, Counters& counters,
+                  ShadowCells* cells) const {
   if (prim == kNoPrim) return background();
   const PrimRef& ref = scene_.prims[prim];
   static const Material kDefault;
   const Material& m = ref.material < scene_.materials.size() ? scene_.materials[ref.material] : kDefault;
   const Vec3 p = ray.at(t);
-  return lit(m, p, scene_.shading_normal(prim, p, ray), ray, t, with_shadows, counters);
+  return lit(m, p, scene_.shading_normal(prim, p, ray), ray, t, with_shadows, counters, cells);
 }
 
 Rgb Shader::shade_surface(uint32_t material, const Vec3& normal, const Ray& ray, double t, Counters& counters) const {
   static const Material kDefault;
   const Material& m = material < scene_.materials.size() ? scene_.materials[material] : kDefault;
   const Vec3 n = glm::dot(normal, ray.dir) > 0.0 ? -normal : normal;
-  return lit(m, ray.at(t), n, ray, t, false, counters);
+  return lit(m, ray.at(t), n, ray, t, false, counters, nullptr);
 }
 
 Rgb Shader::lit(const Material& m, const Vec3& p, const Vec3& n, const Ray& ray, double t, bool with_shadows,
-                Counters& counters) const {
+                Counters& counters, ShadowCells* cells) const {
   const Vec3 v = -ray.dir;
   Vec3 color = 0.1 * m.color;  // a little ambient so unlit faces stay readable
   auto add_light = [&](const Vec3& to_light, const Vec3& light_color, double scale) {
@@ -68,7 +69,10 @@ Rgb Shader::lit(const Material& m, const Vec3& p, const Vec3& n, const Ray& ray,
       to_light /= dist;
       if (with_shadows && effects_.shadows && glm::dot(n, to_light) > 0.0) {
         const Ray shadow(p, to_light);
-        if (occluded(scene_, tree_, shadow, epsilon_ * (1.0 + t), dist - epsilon_, counters)) continue;
+        const Occlusion o = occlusion(scene_, tree_, shadow, epsilon_ * (1.0 + t), dist - epsilon_, counters,
+                                      cells ? cells->gate : nullptr, cells ? cells->marks : nullptr);
+        if (o == Occlusion::kBlocked) continue;
+        if (o == Occlusion::kMissing) cells->missing = true;  // lit for now; the caller waits
       }
       add_light(to_light, light.color, light_scale_);
     }

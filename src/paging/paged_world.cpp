@@ -40,11 +40,20 @@ struct PagedWorld::Graft {
   uint64_t bytes = 0;
 };
 
+// What one sync() call did so far.
+struct PagedWorld::SyncPass {
+  bool changed = false;
+  bool full = false;               // evicting: the room is full of cells grafted by this call
+  std::vector<uint32_t> later;     // wanted again
+  std::vector<uint32_t> grafted;
+};
+
 struct PagedWorld::Decoded {
   uint32_t cell = 0;
   // Not decoded: the page left the cache between ready() and try_pin(), or the deadline came
   // before its turn. Wanted again.
   bool retry = false;
+  bool skipped = false;  // not decoded: it would not fit (hopeless())
   Status status;
   Scene scene;
   KdTree tree;
@@ -85,6 +94,8 @@ PagedWorld::PagedWorld(const StoreModel& model, const PagedWorldOptions& options
   failed_.assign(top_cells_, 0);
   lru_ = CellLru(top_cells_, decoded_budget);
   decoded_size_.assign(top_cells_, 0);
+  passed_image_.assign(top_cells_, 0);
+  grafted_image_.assign(top_cells_, 0);
   wanted_flag_ = std::make_unique<std::atomic<uint8_t>[]>(top_cells_);
   for (size_t c = 0; c < top_cells_; ++c) wanted_flag_[c].store(0, std::memory_order_relaxed);
 
@@ -174,81 +185,101 @@ bool PagedWorld::evict_for(uint64_t bytes, const std::vector<uint32_t>& keep) {
   return true;
 }
 
+std::vector<uint32_t> PagedWorld::take_ready() {
+  std::vector<uint32_t> ready;
+  std::lock_guard<std::mutex> lock(wanted_mutex_);
+  std::vector<uint32_t> waiting;
+  for (const uint32_t c : wanted_) {
+    const uint64_t page = model_.cells()[c].page;
+    if (cache_->ready(page) || cache_->failed(page)) {
+      ready.push_back(c);
+    } else {
+      cache_->request(page);  // no-op while queued or loading; again if it was evicted unread
+      waiting.push_back(c);
+    }
+  }
+  wanted_.swap(waiting);
+  return ready;
+}
+
+// Once a cell did not fit in this frame, the frame's cells fill the room: a cell is decoded only
+// when it is known (from an earlier page-in) to fit, the others are dropped undecoded.
+bool PagedWorld::hopeless(uint32_t cell) const {
+  const uint64_t size = decoded_size_[cell];
+  return !dropped_.empty() && (size == 0 || lru_.bytes() + garbage_bytes_ + size > lru_.budget());
+}
+
+// Where one decoded (or not decoded) cell goes: grafted, back to the wanted list, failed, or
+// dropped for lack of room.
+void PagedWorld::place(Decoded& d, bool evict, SyncPass& pass) {
+  if (d.retry) {
+    pass.later.push_back(d.cell);
+  } else if (d.skipped) {
+    ++counters_.cells_dropped;
+    dropped_.push_back(d.cell);
+  } else if (!d.status) {
+    // Drawn as missing from now on: an empty cell the walk goes through.
+    failed_[d.cell] = 1;
+    missing_[d.cell] = 0;
+    ++counters_.page_errors;
+    pass.changed = true;
+  } else if (lru_.bytes() + garbage_bytes_ + d.bytes <= lru_.budget() ||
+             (evict && evict_for(d.bytes, pass.grafted))) {
+    graft(d);
+    pass.grafted.push_back(d.cell);
+    pass.changed = true;
+  } else if (evict && d.bytes <= lru_.budget()) {
+    // Full of cells grafted by this call, which the caller has not drawn yet: the rest
+    // comes in with the next call.
+    pass.later.push_back(d.cell);
+    pass.full = true;
+  } else {
+    // No room while this frame holds everything else: not again in this frame (the flag
+    // stays set), wanted again from the next one.
+    ++counters_.cells_dropped;
+    dropped_.push_back(d.cell);
+    decoded_size_[d.cell] = d.bytes;
+  }
+}
+
 bool PagedWorld::sync_impl(std::chrono::steady_clock::time_point deadline, bool evict) {
   const auto start = std::chrono::steady_clock::now();
-  std::vector<uint32_t> ready;
-  {
-    std::lock_guard<std::mutex> lock(wanted_mutex_);
-    std::vector<uint32_t> waiting;
-    for (const uint32_t c : wanted_) {
-      const uint64_t page = model_.cells()[c].page;
-      if (cache_->ready(page) || cache_->failed(page)) {
-        ready.push_back(c);
-      } else {
-        cache_->request(page);  // no-op while queued or loading; again if it was evicted unread
-        waiting.push_back(c);
-      }
-    }
-    wanted_.swap(waiting);
-  }
+  const std::vector<uint32_t> ready = take_ready();
   if (ready.empty()) return false;
-  bool changed = false;
-  std::vector<uint32_t> later, grafted;
+  SyncPass pass;
   const size_t batch = std::max<size_t>(4, 2 * static_cast<size_t>(tbb::info::default_concurrency()));
-  bool full = false;
   for (size_t b = 0; b < ready.size(); b += batch) {
-    if (full || std::chrono::steady_clock::now() >= deadline) {
-      later.insert(later.end(), ready.begin() + static_cast<std::ptrdiff_t>(b), ready.end());
+    if (pass.full || std::chrono::steady_clock::now() >= deadline) {
+      pass.later.insert(pass.later.end(), ready.begin() + static_cast<std::ptrdiff_t>(b), ready.end());
       break;
     }
     const size_t e = std::min(ready.size(), b + batch);
     std::vector<Decoded> decoded(e - b);
+    for (size_t i = 0; i < decoded.size(); ++i) {
+      decoded[i].cell = ready[b + i];
+      decoded[i].skipped = !evict && hopeless(ready[b + i]);
+    }
     // One page per task, each starting only before the deadline: a frame overruns its paging
     // share by at most one page's decode and build, not by a whole batch.
     tbb::parallel_for(
         tbb::blocked_range<size_t>(0, decoded.size(), 1), [&](const tbb::blocked_range<size_t>& range) {
           for (size_t i = range.begin(); i < range.end(); ++i) {
+            if (decoded[i].skipped) continue;
             if (i > 0 && std::chrono::steady_clock::now() >= deadline) {
-              decoded[i].cell = ready[b + i];
               decoded[i].retry = true;
             } else {
               decode(ready[b + i], decoded[i]);
             }
           }
         });
-    for (Decoded& d : decoded) {
-      if (d.retry) {
-        later.push_back(d.cell);
-      } else if (!d.status) {
-        // Drawn as missing from now on: an empty cell the walk goes through.
-        failed_[d.cell] = 1;
-        missing_[d.cell] = 0;
-        ++counters_.page_errors;
-        changed = true;
-      } else if (lru_.bytes() + garbage_bytes_ + d.bytes <= lru_.budget() ||
-                 (evict && evict_for(d.bytes, grafted))) {
-        graft(d);
-        grafted.push_back(d.cell);
-        changed = true;
-      } else if (evict && d.bytes <= lru_.budget()) {
-        // Full of cells grafted by this call, which the caller has not drawn yet: the rest
-        // comes in with the next call.
-        later.push_back(d.cell);
-        full = true;
-      } else {
-        // No room while this frame holds everything else: not again in this frame (the flag
-        // stays set), wanted again from the next one.
-        ++counters_.cells_dropped;
-        dropped_.push_back(d.cell);
-      }
-    }
+    for (Decoded& d : decoded) place(d, evict, pass);
   }
-  if (!later.empty()) {
+  if (!pass.later.empty()) {
     std::lock_guard<std::mutex> lock(wanted_mutex_);
-    wanted_.insert(wanted_.end(), later.begin(), later.end());
+    wanted_.insert(wanted_.end(), pass.later.begin(), pass.later.end());
   }
   counters_.decode_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-  return changed;
+  return pass.changed;
 }
 
 double PagedWorld::wait_for_pages(std::chrono::steady_clock::time_point deadline) {
@@ -317,6 +348,8 @@ void PagedWorld::graft(Decoded& d) {
   live_.push_back(g);
   lru_.insert(d.cell, g.bytes);
   decoded_size_[d.cell] = g.bytes;
+  if (grafted_image_[d.cell] == image_) ++counters_.cells_reread;
+  grafted_image_[d.cell] = image_;
   ++counters_.cells_paged_in;
   counters_.primitives_paged_in += g.prims;
 }
@@ -347,25 +380,32 @@ void PagedWorld::note_touched(const CellMarks& marks) {
   }
 }
 
-std::vector<uint32_t> PagedWorld::touched_store_cells(const CellMarks& marks) const {
+std::vector<uint32_t> PagedWorld::image_cells(const CellMarks& marks) const {
   std::vector<uint8_t> seen(top_cells_, 0);
   std::vector<uint32_t> out;
-  const size_t n = std::min(marks.size(), owner_.size());
-  for (size_t c = 0; c < n; ++c) {
-    if (!marks.marked(static_cast<int32_t>(c))) continue;
-    const uint32_t s = owner_[c];
+  auto add = [&](uint32_t s) {
     if (!seen[s]) {
       seen[s] = 1;
       out.push_back(s);
     }
+  };
+  for (const uint32_t s : earlier_cells_) add(s);
+  for (const uint32_t s : lru_.touched_cells()) add(s);
+  const size_t n = std::min(marks.size(), owner_.size());
+  for (size_t c = 0; c < n; ++c) {
+    if (marks.marked(static_cast<int32_t>(c))) add(owner_[c]);
   }
+  std::sort(out.begin(), out.end());
   return out;
 }
 
 uint64_t PagedWorld::end_frame(const CellMarks& marks) {
   note_touched(marks);
   touched_bytes_ = lru_.touched_bytes();
-  return lru_.touched_cells().size();
+  const std::vector<uint32_t> cells = image_cells(CellMarks());
+  working_set_bytes_ = 0;
+  for (const uint32_t c : cells) working_set_bytes_ += decoded_size_[c];
+  return cells.size();
 }
 
 std::vector<uint32_t> PagedWorld::touched_this_frame() const { return lru_.touched_cells(); }
@@ -377,6 +417,8 @@ void PagedWorld::forget_dropped() {
 
 void PagedWorld::begin_frame(CellMarks& marks) {
   lru_.begin_frame();
+  ++image_;
+  earlier_cells_.clear();
   forget_dropped();
   // Keep a quarter of the decoded share free for the cells this frame pages in: when live
   // cells and garbage fill more than three quarters, unlink the least recently touched down
@@ -399,6 +441,31 @@ bool PagedWorld::reclaim_untouched(CellMarks& marks) {
   forget_dropped();
   marks.resize(tree_.cells_.size());
   return true;
+}
+
+uint64_t PagedWorld::release_pass(CellMarks& marks) {
+  note_touched(marks);
+  uint64_t demand = lru_.touched_bytes();
+  for (const uint32_t c : dropped_) demand += decoded_size_[c];
+  for (const uint32_t c : lru_.touched_cells()) {
+    if (passed_image_[c] == image_) continue;
+    passed_image_[c] = image_;
+    earlier_cells_.push_back(c);
+  }
+  lru_.begin_frame();
+  while (!live_.empty()) unlink(live_.back().cell);
+  compact();
+  forget_dropped();
+  marks.resize(tree_.cells_.size());
+  return demand;
+}
+
+uint64_t PagedWorld::budget_for(uint64_t decoded_bytes) {
+  // budget = decoded share + max(kMinCompressedShare, budget / 8) (the constructor's split).
+  const uint64_t low = decoded_bytes + kMinCompressedShare;
+  const uint64_t budget = low <= 8 * kMinCompressedShare ? low : (decoded_bytes * 8 + 6) / 7;
+  const uint64_t mib = uint64_t{1} << 20;
+  return (budget + mib - 1) / mib * mib;
 }
 
 // Slides every live graft down over the garbage, in array order, in place (a graft's ranges

@@ -23,11 +23,18 @@
 // frame degrades to fewer samples) instead.
 // Unlinked subtrees leave garbage in the arrays; compact() at a frame boundary reclaims it.
 //
+// A frame whose own cells do not fit is rendered in passes (Walkthrough): release_pass()
+// between two passes unlinks every cell, the current frame's included, and compacts. An image
+// (begin_frame() to end_frame()) may so span several LRU frames; what it touched in all of
+// them is its working set (image_cells(), working_set_bytes()), and a cell grafted twice in
+// one image counts as re-read (PagingCounters::cells_reread).
+//
 // Threads: missing() and want() are called by render workers while a frame slice runs; every
 // other call is made by the owner between slices (no slice running). I/O runs on the cache's
 // loader thread; decoding and subtree builds run in parallel inside sync().
 #pragma once
 
+#include "src/engine/cell_gate.h"
 #include "src/engine/frustum.h"
 #include "src/engine/kdtree.h"
 #include "src/core/sample_buffer.h"
@@ -59,6 +66,7 @@ struct PagingCounters {
   uint64_t cells_dropped = 0;   // decoded cells that did not fit (everything else touched this frame)
   uint64_t page_errors = 0;     // pages that failed (each at most once)
   uint64_t primitives_paged_in = 0;
+  uint64_t cells_reread = 0;    // cells grafted again in the same image (released in between)
   double decode_ms = 0.0;       // wall time of decode + subtree build + graft in sync()
 };
 
@@ -112,9 +120,20 @@ class PagedWorld final : public CellGate {
   // changes nothing) when there is nothing to reclaim; otherwise cells are renumbered and the
   // caller must restart the image.
   bool reclaim_untouched(CellMarks& marks);
+  // Between two passes of an image whose own cells do not fit: records what the pass touched
+  // (for the image's working set), unlinks every cell and compacts, and forgets the cells
+  // dropped. Cells are renumbered: the caller must tell the caster (FrustumCaster::renumbered).
+  // Returns the pass's demand: decoded bytes of the cells it touched and of those it dropped.
+  uint64_t release_pass(CellMarks& marks);
   uint64_t end_frame(const CellMarks& marks);
-  // Store cells marked in `marks` (each grafted subtree counts as its store cell).
-  std::vector<uint32_t> touched_store_cells(const CellMarks& marks) const;
+  // Store cells the current image touched: in its earlier passes, paged in or touched in this
+  // pass, and marked in `marks` (each grafted subtree counts as its store cell). Ascending.
+  std::vector<uint32_t> image_cells(const CellMarks& marks) const;
+  // Decoded bytes of the image's cells as of the last end_frame() (cells never decoded: 0).
+  uint64_t working_set_bytes() const { return working_set_bytes_; }
+  // The smallest budget_bytes whose decoded share holds `decoded_bytes` (the inverse of the
+  // split between compressed pages and decoded cells), rounded up to a MiB.
+  static uint64_t budget_for(uint64_t decoded_bytes);
   // The store cell a world cell belongs to.
   uint32_t store_cell(int32_t world_cell) const { return owner_[size_t(world_cell)]; }
   bool resident(uint32_t store_cell) const { return slot_[store_cell] >= 0; }
@@ -127,6 +146,7 @@ class PagedWorld final : public CellGate {
   PagingCounters take_counters();
   uint64_t budget_bytes() const { return budget_; }
   uint64_t decoded_bytes() const { return lru_.bytes(); }
+  uint64_t decoded_budget() const { return lru_.budget(); }  // the decoded cells' share
   // Decoded bytes of the cells the frame touched, as of the last end_frame().
   uint64_t touched_bytes() const { return touched_bytes_; }
   // Compressed pages held by the cache plus decoded cells: never above budget_bytes() after
@@ -141,8 +161,12 @@ class PagedWorld final : public CellGate {
  private:
   struct Graft;
   struct Decoded;
+  struct SyncPass;
   void decode(uint32_t cell, Decoded& out) const;
   bool sync_impl(std::chrono::steady_clock::time_point deadline, bool evict);
+  std::vector<uint32_t> take_ready();
+  bool hopeless(uint32_t cell) const;
+  void place(Decoded& d, bool evict, SyncPass& pass);
   // Unlinks live cells other than `keep` (LRU first) and compacts until `bytes` more fit.
   bool evict_for(uint64_t bytes, const std::vector<uint32_t>& keep);
   // Unlinks cells not touched in this frame, LRU first, until at most `target` decoded bytes
@@ -161,7 +185,12 @@ class PagedWorld final : public CellGate {
   CellLru lru_;                 // the live cells' bytes within the decoded share, order of use
   uint64_t garbage_bytes_ = 0;
   uint64_t touched_bytes_ = 0;
+  uint64_t working_set_bytes_ = 0;
   std::vector<uint32_t> dropped_;        // store cells dropped for lack of room this frame
+  uint64_t image_ = 1;                   // images begun so far (begin_frame)
+  std::vector<uint64_t> passed_image_;   // store cell -> last image whose earlier pass touched it
+  std::vector<uint32_t> earlier_cells_;  // store cells touched in earlier passes of this image
+  std::vector<uint64_t> grafted_image_;  // store cell -> last image that grafted it
 
   Scene scene_;
   KdTree tree_;

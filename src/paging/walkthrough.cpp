@@ -16,6 +16,9 @@ using Clock = std::chrono::steady_clock;
 
 // How many frames ahead the eye's path is prefetched.
 constexpr int kPrefetchFrames = 4;
+// The share of the decoded cells' room a pass of a thrashing image aims to fill (the rest
+// absorbs the error of estimating a part's cells from the last part's).
+constexpr double kPassFill = 0.75;
 
 bool same_camera(const Camera& a, const Camera& b) {
   return a.eye == b.eye && a.look_at == b.look_at && a.up == b.up && a.vfov_deg == b.vfov_deg;
@@ -51,6 +54,12 @@ nlohmann::json FrameReport::to_json() const {
                       {"cells_dropped", cells_dropped},
                       {"page_errors", page_errors},
                       {"resident_cells", resident_cells},
+                      {"thrashing", thrashing},
+                      {"unfit", unfit},
+                      {"passes", passes},
+                      {"cells_reread", cells_reread},
+                      {"working_set_bytes", working_set_bytes},
+                      {"cache_needed", cache_needed},
                       {"collision_queries", collision_queries},
                       {"collision_bricks", collision_bricks},
                       {"collision_bytes", collision_bytes},
@@ -126,6 +135,9 @@ void Walkthrough::start_image(bool shadows) {
   image_shadows_ = shadows;
   caster_->begin(view_, buffer_, marks_, true, shadows);
   image_samples_ = 0;
+  passes_ = Passes();
+  earlier_ids_.clear();
+  passes_.pixels = view_.pixels();
 }
 
 namespace {
@@ -195,6 +207,7 @@ void Walkthrough::report_paging(FrameReport& r) {
   r.cells_paged_in = paging.cells_paged_in;
   r.cells_evicted = paging.cells_evicted;
   r.cells_dropped = paging.cells_dropped;
+  r.cells_reread = paging.cells_reread;
   r.decode_ms = paging.decode_ms;
   r.bytes_read = cache.bytes_read - last_bytes_read_;
   last_bytes_read_ = cache.bytes_read;
@@ -204,6 +217,14 @@ void Walkthrough::report_paging(FrameReport& r) {
   r.cache_budget = world_->budget_bytes();
   const uint64_t refs = model_->info().references;
   r.culling_rate = refs > 0 ? 1.0 - std::min(1.0, double(r.primitives_touched) / double(refs)) : 0.0;
+  r.working_set_bytes = world_->working_set_bytes();
+  r.cache_needed = PagedWorld::budget_for(r.working_set_bytes);
+  if (!culler_) {
+    r.passes = passes_.count;
+    r.unfit = passes_.unfit;
+  }
+  r.thrashing = r.passes > 1 || r.cells_reread > 0 || r.unfit ||
+                r.bytes_read > r.cache_budget || (!culler_ && passes_.overflowed);
 }
 
 void Walkthrough::report_oracle(FrameReport& r) {
@@ -225,7 +246,11 @@ struct Walkthrough::FramePlan {
   bool overtime = false;       // past the pegged time to reach floor_samples
 };
 
-FrameReport Walkthrough::frame(const Camera& camera) {
+FrameReport Walkthrough::frame(const Camera& camera) { return render_frame(camera, false); }
+
+FrameReport Walkthrough::still_frame(const Camera& camera) { return render_frame(camera, true); }
+
+FrameReport Walkthrough::render_frame(const Camera& camera, bool deferred_now) {
   if (culler_) return culling_frame(camera);
   const auto start = Clock::now();
   FrameReport r;
@@ -233,7 +258,8 @@ FrameReport Walkthrough::frame(const Camera& camera) {
   r.eye = camera.eye;
   const std::optional<Camera> previous = last_camera_;
   const bool still = previous && same_camera(*previous, camera);
-  r.continued = !choose_image(camera, still);
+  r.continued = !choose_image(camera, still, deferred_now);
+  passes_.reclaimed = false;
   last_camera_ = camera;
   FramePlan plan = plan_frame(start, still);
   Counters counters;
@@ -254,11 +280,11 @@ FrameReport Walkthrough::frame(const Camera& camera) {
   return r;
 }
 
-bool Walkthrough::choose_image(const Camera& camera, bool still) {
+bool Walkthrough::choose_image(const Camera& camera, bool still, bool deferred_now) {
   const bool lights = shader_->effects().shadows && options_.shadows;
   if (!still) {
     view_ = View(camera, options_.width, options_.height);
-    start_image(false);
+    start_image(deferred_now && lights);
   } else if (caster_->complete() && lights && !image_shadows_) {
     start_image(true);  // the camera stopped and the image is complete: now the deferred effects
   } else {
@@ -292,7 +318,6 @@ Walkthrough::FramePlan Walkthrough::plan_frame(Clock::time_point start, bool sti
 double Walkthrough::render_image(FramePlan& plan, Counters& counters) {
   const FrameBudget& budget = options_.budget;
   double stall_ms = 0.0;
-  int restarts = 0;
   while (true) {
     // With nothing else to do, paging in may use the rest of the frame.
     if (world_->sync(caster_->runnable() ? plan.page_in_deadline : plan.deadline)) {
@@ -305,21 +330,53 @@ double Walkthrough::render_image(FramePlan& plan, Counters& counters) {
       run_slice(plan, counters);
       continue;
     }
-    // Only parked work is left.
+    // Only parked (or held) work is left. With no page on its way, the part a pass resumed is
+    // done, or what it waits for was dropped for lack of room.
     if (world_->pending() == 0) {
-      // What it waits for was dropped for lack of room. Free what this image has not touched
-      // (cells of earlier images) once and start the image again; when the image alone fills
-      // the budget, the frame degrades: the missing cells' pixels stay reconstructed.
-      if (restarts++ < 1 && world_->reclaim_untouched(marks_)) {
-        caster_->begin(view_, buffer_, marks_, true, image_shadows_);
-        image_samples_ = 0;
-        continue;
-      }
+      if (next_pass(plan.wait_for_all)) continue;
       break;
     }
     stall_ms += world_->wait_for_pages(plan.wait_for_all ? Clock::time_point::max() : plan.deadline);
   }
   return stall_ms;
+}
+
+bool Walkthrough::next_pass(bool finish) {
+  const bool stuck = caster_->parked() > 0;
+  // Cells of earlier images go first, once a frame: nothing this image holds is read again.
+  if (stuck && !passes_.reclaimed) {
+    passes_.reclaimed = true;
+    keep_ids();
+    if (world_->reclaim_untouched(marks_)) {
+      resume_renumbered();
+      return true;
+    }
+  }
+  passes_.overflowed = passes_.overflowed || stuck;
+  if (!finish) return false;  // a budgeted frame degrades: the missing cells' pixels stay reconstructed
+  // A pass over one pixel that began with an empty cache and got nowhere: that pixel's cells
+  // alone do not fit.
+  if (stuck && passes_.count > 1 && passes_.pixels <= 1 && image_samples_ == passes_.samples_at_start) {
+    passes_.unfit = true;
+    return false;
+  }
+  // The next part's size from this pass's demand: three quarters of the room for its cells,
+  // at most twice this part, and less than this part when this one did not fit.
+  keep_ids();
+  const uint64_t demand = world_->release_pass(marks_);
+  double scale = demand > 0 ? kPassFill * double(world_->decoded_budget()) / double(demand) : 2.0;
+  scale = std::min(scale, stuck ? kPassFill : 2.0);
+  passes_.pixels = std::max<uint64_t>(1, static_cast<uint64_t>(double(passes_.pixels) * scale));
+  ++passes_.count;
+  passes_.pixels = caster_->hold_parked(passes_.pixels);
+  passes_.samples_at_start = image_samples_;
+  resume_renumbered();
+  return true;
+}
+
+void Walkthrough::resume_renumbered() {
+  caster_->renumbered();
+  caster_->resume_parked();
 }
 
 bool Walkthrough::out_of_time(FramePlan& plan) const {
@@ -377,7 +434,7 @@ void Walkthrough::report_image(FrameReport& r, const Counters& counters) const {
   r.image_samples = image_samples_;
   r.complete = caster_->complete();
   r.shadows = image_shadows_;
-  r.parked = caster_->parked();
+  r.parked = caster_->parked() + caster_->held();
 }
 
 const std::vector<Rgb>& Walkthrough::image() {
@@ -401,10 +458,26 @@ std::vector<uint32_t> Walkthrough::ids() const {
   const Scene& scene = world_->scene();
   for (size_t i = 0; i < out.size(); ++i) {
     if (!buffer_.confirmed(i)) continue;
+    if (!earlier_ids_.empty() && earlier_ids_[i] != kUnsetId) {
+      out[i] = earlier_ids_[i];
+      continue;
+    }
     const uint32_t p = buffer_.prim(i);
     if (p != kNoPrim) out[i] = scene.prims[p].source;
   }
   return out;
+}
+
+// The buffer holds world primitives, which a release renumbers (or unlinks): the source ids of
+// the pixels confirmed so far are kept before it.
+void Walkthrough::keep_ids() {
+  if (earlier_ids_.empty()) earlier_ids_.assign(buffer_.size(), kUnsetId);
+  const Scene& scene = world_->scene();
+  for (size_t i = 0; i < earlier_ids_.size(); ++i) {
+    if (earlier_ids_[i] != kUnsetId || !buffer_.confirmed(i)) continue;
+    const uint32_t p = buffer_.prim(i);
+    earlier_ids_[i] = p == kNoPrim ? kNoPrim : scene.prims[p].source;
+  }
 }
 
 }  // namespace frontier

@@ -15,7 +15,19 @@
 // Progressive (§5.3): a frame whose camera equals the previous one continues the same image
 // (more samples) instead of starting a new one; the first complete image of a still camera
 // is followed by one with the deferred effects (shadows) if the scene declares lights. While
-// the camera moves, images have immediate effects only.
+// the camera moves, images have immediate effects only. still_frame() renders a camera that
+// will not move with its deferred effects at once (a headless single frame). Shadow rays page
+// in the cells they cross like primary rays do (a pixel whose shadow rays cross a missing
+// cell waits for it), so a complete image with shadows equals the in-memory render.
+//
+// Frames that run to completion (sync paging, or no budget) always complete, also when their
+// cells do not fit in the cache at once (thrashing): when what the frame waits for was
+// dropped for lack of room, the cells of earlier images go first; when the frame's own cells
+// fill the cache, the rest of the image is rendered in passes over parts of the screen (Z
+// order), the cache emptied between them, each part half as large as the last one that did
+// not fit (twice as large after one that did). Confirmed pixels stay, so samples never exceed
+// pixels. Only when a single pixel's cells (its primary and shadow rays') do not fit does the
+// frame end incomplete (FrameReport::unfit). Budgeted frames degrade instead (fewer samples).
 //
 // The report's fields are DESIGN.md's "Working set, defined once", counted in store cells (a
 // store cell refined into a subtree counts once): see FrameReport.
@@ -93,7 +105,7 @@ struct FrameReport {
   uint64_t primitives_tested = 0;
   uint64_t ray_primitive_tests = 0;
   uint64_t rays = 0;
-  uint64_t samples = 0;             // pixels confirmed during this frame
+  uint64_t samples = 0;             // pixels confirmed during this frame (each at most once)
   double frame_ms = 0.0;
   double stall_ms = 0.0;            // waiting for pages with nothing else to do
   double floor_ms = 0.0;            // time past the pegged frame time spent reaching min_sampled
@@ -110,6 +122,15 @@ struct FrameReport {
   uint64_t cells_dropped = 0;
   uint64_t page_errors = 0;         // cumulative: pages that failed to read or decode
   uint64_t resident_cells = 0;
+  // Thrashing: the image's own cells did not all fit in the cache at once (they filled it while
+  // it waited for more, passes > 1, cells re-read, more bytes read than the cache holds, or
+  // unfit). Cells dropped while earlier images' cells held the room are not thrashing.
+  bool thrashing = false;
+  bool unfit = false;               // one pixel's cells do not fit in the cache: cannot complete
+  uint64_t passes = 1;              // parts the image was rendered in, the cache emptied between
+  uint64_t cells_reread = 0;        // store cells paged in again within this image
+  uint64_t working_set_bytes = 0;   // decoded bytes of the store cells the image touched
+  uint64_t cache_needed = 0;        // the smallest cache_budget whose decoded share holds them
   uint64_t collision_queries = 0;   // filled in by the viewer's walk mode (0 without it)
   // Walk mode's collision grid (0 without it): bricks resident now and their memory, bricks
   // read since the start (cumulative), bricks that failed to read (cumulative; they read solid).
@@ -143,6 +164,9 @@ class Walkthrough {
   ~Walkthrough();
 
   FrameReport frame(const Camera& camera);
+  // One image of a camera that stays where it is: run to completion with the deferred effects
+  // the scene declares (shadows) from the start, as an in-memory render shows it.
+  FrameReport still_frame(const Camera& camera);
   // Changes the per-frame budget (pegging time or samples, paper §5.5) for the next frames.
   void set_budget(const FrameBudget& budget) { options_.budget = budget; }
   const FrameBudget& budget() const { return options_.budget; }
@@ -159,20 +183,31 @@ class Walkthrough {
   std::vector<double> depths() const { return culler_ ? culler_->depths() : std::vector<double>{}; }
   // Store cells touched by the current image.
   std::vector<uint32_t> touched_cells() const {
-    return culler_ ? world_->touched_this_frame() : world_->touched_store_cells(marks_);
+    return culler_ ? world_->touched_this_frame() : world_->image_cells(marks_);
   }
   // The oracle's last frame (only with options.oracle).
   const OracleFrame* last_oracle() const { return oracle_frame_ ? &*oracle_frame_ : nullptr; }
 
  private:
   struct FramePlan;
+  // How the current image's passes go (see the top of this file).
+  struct Passes {
+    uint64_t count = 1;             // passes so far
+    uint64_t pixels = 0;            // pixels of the parked work the current pass resumed
+    uint64_t samples_at_start = 0;  // image_samples_ when the current pass began
+    bool reclaimed = false;         // this frame freed the cells of earlier images once
+    bool overflowed = false;        // the image's own cells filled the cache
+    bool unfit = false;
+  };
   Walkthrough() = default;
   void start_image(bool shadows);
   FrameReport culling_frame(const Camera& camera);
+  FrameReport render_frame(const Camera& camera, bool deferred_now);
   // The steps of frame(), in order.
-  // Starts a new image for a moved camera, or the deferred effects for a stopped one whose
-  // image is complete; returns false when the frame continues the current image.
-  bool choose_image(const Camera& camera, bool still);
+  // Starts a new image for a moved camera (with the deferred effects when `deferred_now`), or
+  // the deferred effects for a stopped one whose image is complete; returns false when the
+  // frame continues the current image.
+  bool choose_image(const Camera& camera, bool still, bool deferred_now);
   // The frame's deadlines and quality floor, from its start and the budget.
   FramePlan plan_frame(std::chrono::steady_clock::time_point start, bool still) const;
   // Runs job slices, pages in and waits for pages until the image is complete or the frame's
@@ -180,6 +215,12 @@ class Walkthrough {
   double render_image(FramePlan& plan, Counters& counters);
   // True when the frame must end now; moves the deadline once for the quality floor.
   bool out_of_time(FramePlan& plan) const;
+  // When only parked work is left and no page is on its way: frees room and starts the next
+  // pass (see the top of this file). False when the frame ends here.
+  bool next_pass(bool finish);
+  // The caster goes on after the world's cells were renumbered.
+  void resume_renumbered();
+  void keep_ids();
   void run_slice(const FramePlan& plan, Counters& counters);
   // Wants the cells the eye reaches in the next frames if it keeps its last step.
   void prefetch(const Camera& camera, const Camera& previous);
@@ -208,6 +249,11 @@ class Walkthrough {
   double finish_ms_ = 0.0;        // recent time from the end of the job queue to the end of a frame
   bool reconstructed_ = false;    // image() is up to date with the samples
   uint64_t image_samples_ = 0;    // pixels confirmed in the current image (each confirm counts one)
+  Passes passes_;
+  // Source ids of the pixels confirmed before the world was last renumbered in this image
+  // (kUnsetId: not confirmed then); empty while it never was.
+  static constexpr uint32_t kUnsetId = kNoPrim - 1;
+  std::vector<uint32_t> earlier_ids_;
 };
 
 }  // namespace frontier

@@ -1,0 +1,131 @@
+// A still headless frame of a store renders what the in-memory render of the same store does
+// (issue 24, item 4): the shadows its lights cast, also from geometry outside the view and with
+// a cache too small for the frame (shadow rays page in the cells they cross); and a scene that
+// declares no lights, or a run with --no-shadows, casts no shadow ray.
+#include "src/io/image.h"
+#include "tests/process_util.h"
+#include "tests/test_files.h"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+namespace frontier {
+namespace {
+
+namespace fs = std::filesystem;
+using proc::run_binary;
+
+const fs::path& scratch() { return testing::scratch_dir("frontier_store_still"); }
+
+// SPD tree with its camera moved to look at the ground beside the tree: the shadows there are
+// cast by branches outside the view.
+std::string tree_shadow_nff() {
+  const std::string out = (scratch() / "tree_shadow.nff").string();
+  std::ifstream in(testing::spd("tree"));
+  std::ofstream o(out);
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind("from ", 0) == 0) line = "from 2 -3 2.5";
+    if (line.rfind("at ", 0) == 0) line = "at 2 -1 0";
+    if (line.rfind("angle ", 0) == 0) line = "angle 40";
+    o << line << "\n";
+  }
+  return out;
+}
+
+std::string store_of(const std::string& model, const std::string& name) {
+  const std::string out = (scratch() / (name + ".frontier")).string();
+  const auto r = run_binary(FRONTIER_BUILD_PATH, {model, "-o", out, "--codec", "raw", "--cell-prims", "32", "--quiet"},
+                            scratch());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  return out;
+}
+
+// Runs frontier-view headless on `args` at `size`, writing `output` (--png or --stats) to the
+// scratch file `name`, whose path it returns.
+std::string view_frame(std::vector<std::string> args, const char* size, const char* output, const std::string& name) {
+  const std::string file = (scratch() / name).string();
+  for (const char* a : {"--headless", "--threads", "2", "--size", size, output}) args.emplace_back(a);
+  args.push_back(file);
+  const auto r = run_binary(FRONTIER_VIEW_PATH, args, scratch());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  return file;
+}
+
+std::vector<Rgb> frame_png(const std::vector<std::string>& args, const std::string& name) {
+  const std::string png = view_frame(args, "96x96", "--png", name + ".png");
+  int w = 0, h = 0;
+  std::vector<Rgb> pixels;
+  EXPECT_TRUE(read_png(png, w, h, pixels).is_ok()) << png;
+  return pixels;
+}
+
+nlohmann::json frame_stats(const std::vector<std::string>& args, const std::string& name) {
+  std::ifstream in(view_frame(args, "48x48", "--stats", name + ".json"));
+  std::stringstream text;
+  text << in.rdbuf();
+  return nlohmann::json::parse(text.str(), nullptr, false);
+}
+
+// Pixels whose colours differ by more than one 8-bit level in some channel.
+size_t differing(const std::vector<Rgb>& a, const std::vector<Rgb>& b) {
+  if (a.size() != b.size()) return std::max(a.size(), b.size());
+  size_t n = 0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    const float d = std::max({std::abs(a[i].r - b[i].r), std::abs(a[i].g - b[i].g), std::abs(a[i].b - b[i].b)});
+    n += d > 1.5f / 255.0f ? 1 : 0;
+  }
+  return n;
+}
+
+// The still store frame equals the in-memory render of the store, shadows included: from the
+// scene's camera and from one whose shadows come from outside the view, with a cache that
+// holds the frame and with one a third of its cells (passes).
+TEST(WalkthroughStill, StoreFrameEqualsTheInMemoryRenderWithShadows) {
+  const std::vector<std::pair<std::string, std::string>> scenes = {{"tree", store_of(testing::spd("tree"), "tree")},
+                                                                   {"shadow", store_of(tree_shadow_nff(), "shadow")}};
+  for (const auto& [name, store] : scenes) {
+    SCOPED_TRACE(name);
+    const std::vector<Rgb> memory = frame_png({store, "--in-memory"}, name + "_memory");
+    const std::vector<Rgb> unshadowed = frame_png({store, "--in-memory", "--no-shadows"}, name + "_unshadowed");
+    ASSERT_EQ(memory.size(), 96u * 96u);
+    ASSERT_GT(differing(memory, unshadowed), memory.size() / 50) << "the view was meant to show shadows";
+    for (const char* cache : {"512M", "1300K"}) {
+      SCOPED_TRACE(cache);
+      const std::vector<Rgb> paged = frame_png({store, "--cache", cache}, name + "_paged_" + cache);
+      EXPECT_EQ(differing(paged, memory), 0u);
+      const nlohmann::json stats = frame_stats({store, "--cache", cache}, name + "_stats_" + cache);
+      ASSERT_TRUE(stats.is_object());
+      EXPECT_TRUE(stats.at("complete").get<bool>());
+      EXPECT_TRUE(stats.at("shadows").get<bool>());
+      EXPECT_GT(stats.at("shadow_rays").get<uint64_t>(), 0u);
+    }
+  }
+}
+
+// Demand 3: no shadow rays where the scene declares no lights or --no-shadows is given.
+TEST(WalkthroughStill, NoShadowRaysWithoutLightsOrWithNoShadows) {
+  const std::string building = (scratch() / "building.ply").string();
+  const auto r = run_binary(proc::gen_binary(), {"building", "--triangles", "4000", "-o", building, "--quiet"},
+                            scratch());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json unlit = frame_stats({store_of(building, "building")}, "building");
+  ASSERT_TRUE(unlit.is_object());
+  EXPECT_TRUE(unlit.at("complete").get<bool>());
+  EXPECT_FALSE(unlit.at("shadows").get<bool>());
+  EXPECT_EQ(unlit.at("shadow_rays").get<uint64_t>(), 0u);
+  const nlohmann::json off = frame_stats({store_of(testing::spd("tree"), "tree_off"), "--no-shadows"}, "tree_off");
+  ASSERT_TRUE(off.is_object());
+  EXPECT_TRUE(off.at("complete").get<bool>());
+  EXPECT_FALSE(off.at("shadows").get<bool>());
+  EXPECT_EQ(off.at("shadow_rays").get<uint64_t>(), 0u);
+}
+
+}  // namespace
+}  // namespace frontier
