@@ -9,6 +9,7 @@
 #include "src/raster/portals.h"
 #include "src/core/progress.h"
 #include "src/io/scene_reader.h"
+#include "src/paging/proxy.h"
 #include "src/paging/store_model.h"
 #include "src/core/tessellate.h"
 #include "store/page_file.h"
@@ -16,6 +17,7 @@
 
 #include <fmt/format.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 #include <tbb/task_arena.h>
 
 #include <algorithm>
@@ -167,6 +169,26 @@ bool zero_area(const Triangle& t) {
   const Vec3 n = glm::cross(t.v1 - t.v0, t.v2 - t.v0);
   return !(glm::dot(n, n) > 0.0);
 }
+
+// Encodes a cell's (or a proxy's) primitives. Draco refuses cells spanning 2^24 lattice steps or
+// more (its entropy coder's tables grow with the span; see cell_codec.h): such a page is stored
+// raw, still on the lattice.
+Result<EncodedCell> encode_page(const Scene& local, const CellCodecOptions& codec) {
+  Result<EncodedCell> e = encode_cell(local, codec);
+  if (!e && codec.codec == CellCodec::Draco && e.status().code() == Status::Code::InvalidArgument) {
+    CellCodecOptions raw = codec;
+    raw.codec = CellCodec::Raw;
+    e = encode_cell(local, raw);
+  }
+  return e;
+}
+
+// A proxy page made on a worker thread, written by the builder's thread afterwards.
+struct PendingProxyPage {
+  std::optional<Result<EncodedCell>> page;  // none: a leaf, or a subtree without triangles
+  StoreProxy record;
+  bool sloppy = false;
+};
 
 // A file of primitives that still has to be turned into cells.
 struct Part {
@@ -399,6 +421,8 @@ class StoreBuilder {
     }
     if (bounds_.empty()) bounds_ = Aabb(Vec3(-1.0), Vec3(1.0));  // an empty model still makes a store
     if (options_.codec == CellCodec::Draco) lattice_ = Lattice::covering(bounds_, options_.quant_bits);
+    proxy_options_.target_triangles = options_.proxy_triangles;
+    if (options_.codec == CellCodec::Draco) proxy_options_.lattice = lattice_;
     const double slack = options_.codec == CellCodec::Draco ? lattice_.step : 0.0;
     root.region = KdTree::root_bounds(bounds_, slack);
     root_region_ = root.region;
@@ -490,7 +514,8 @@ class StoreBuilder {
   uint64_t capacity() const {
     if (options_.part_primitives > 0) return options_.part_primitives;
     const uint64_t tables = cells_.capacity() * sizeof(StoreCell) + nodes_.capacity() * sizeof(KdTree::Node) +
-                            2 * report_.pages * sizeof(store::Handle);
+                            proxies_.capacity() * sizeof(StoreProxy) +
+                            2 * (report_.pages + report_.proxy_pages) * sizeof(store::Handle);
     const uint64_t free = options_.memory - std::min(options_.memory, tables);
     return std::max<uint64_t>(free / kBytesPerPrimitive, 4ull * options_.cell_prims);
   }
@@ -571,6 +596,7 @@ class StoreBuilder {
     const auto upper = static_cast<uint32_t>(nodes_.size());
     if (Status s = emit(nodes, p.upper, parts, depth + 1, progress); !s) return s;
     nodes_[index] = {p.split, static_cast<uint32_t>(p.axis), upper};
+    if (options_.proxy_triangles > 0) return merge_pending(static_cast<uint32_t>(index));
     return Status::ok();
   }
 
@@ -744,10 +770,7 @@ class StoreBuilder {
 
     t = std::chrono::steady_clock::now();
     const auto& cells = tree.cells();
-    CellCodecOptions codec;
-    codec.codec = options_.codec;
-    codec.lattice = lattice_;
-    if (const char* s = std::getenv("FRONTIER_DRACO_SPEED")) codec.draco_speed = std::atoi(s);
+    const CellCodecOptions codec = codec_options();
     std::vector<Result<EncodedCell>> encoded;
     std::vector<uint32_t> references;
     for (size_t first = 0; first < cells.size(); first += kEncodeChunk) {
@@ -760,14 +783,7 @@ class StoreBuilder {
           if (cell.count == 0) return;
           Scene local;
           for (uint32_t r = cell.first; r < cell.first + cell.count; ++r) local.add_from(scene, tree.ref(r));
-          Result<EncodedCell> e = encode_cell(local, codec);
-          if (!e && codec.codec == CellCodec::Draco && e.status().code() == Status::Code::InvalidArgument) {
-            // Draco refuses cells spanning 2^24 lattice steps or more (its entropy coder's tables
-            // grow with the span; see cell_codec.h): such a cell is stored raw, still on the lattice.
-            CellCodecOptions raw = codec;
-            raw.codec = CellCodec::Raw;
-            e = encode_cell(local, raw);
-          }
+          Result<EncodedCell> e = encode_page(local, codec);
           if (e) {  // only the count of the decoded cell is needed: 256 of them would be megabytes
             references[c - first] = static_cast<uint32_t>(e->decoded.size());
             e->decoded = Scene{};
@@ -795,8 +811,106 @@ class StoreBuilder {
       }
     }
     report_.encode_seconds += seconds_since(t);
+    if (options_.proxy_triangles > 0) {
+      if (Status s = build_part_proxies(scene, tree, node_base); !s) return s;
+    }
     // Straddling primitives are counted in every part: never report more than the total.
     build_progress_->advance(std::min(part.count, root_count_ - std::min(root_count_, build_progress_->done())));
+    return Status::ok();
+  }
+
+  CellCodecOptions codec_options() const {
+    CellCodecOptions codec;
+    codec.codec = options_.codec;
+    codec.lattice = lattice_;
+    if (const char* s = std::getenv("FRONTIER_DRACO_SPEED")) codec.draco_speed = std::atoi(s);
+    return codec;
+  }
+
+  // Proxies of a part's tree (grafted at node_base), bottom-up on the worker threads; their pages
+  // are written here in node order. The part root's mesh goes on the pending stack.
+  Status build_part_proxies(const Scene& scene, const KdTree& tree, uint32_t node_base) {
+    const auto t = std::chrono::steady_clock::now();
+    std::vector<PendingProxyPage> pages(tree.nodes().size());
+    const CellCodecOptions codec = codec_options();
+    ProxyMesh root;
+    arena_->execute([&] { root = part_proxy(scene, tree, 0, pages, codec); });
+    for (size_t i = 0; i < pages.size(); ++i) {
+      if (Status s = write_proxy(node_base + static_cast<uint32_t>(i), pages[i]); !s) return s;
+    }
+    pending_.push_back(std::move(root));
+    report_.proxy_seconds += seconds_since(t);
+    return Status::ok();
+  }
+
+  // The mesh standing for local node `node` of a part's tree: a leaf's input, or an interior
+  // node's proxy (whose page goes to pages[node]).
+  ProxyMesh part_proxy(const Scene& scene, const KdTree& tree, uint32_t node, std::vector<PendingProxyPage>& pages,
+                       const CellCodecOptions& codec) const {
+    const KdTree::Node& n = tree.nodes()[node];
+    if (n.is_leaf()) {
+      const KdTree::Cell& cell = tree.cells()[n.child];
+      Scene local;
+      for (uint32_t r = cell.first; r < cell.first + cell.count; ++r) local.add_from(scene, tree.ref(r));
+      ProxyMesh mesh = proxy_input(local, proxy_options_);
+      pages[node].record.subtree_triangles = mesh.subtree_triangles;
+      return mesh;
+    }
+    ProxyMesh lower, upper;
+    tbb::parallel_invoke([&] { lower = part_proxy(scene, tree, node + 1, pages, codec); },
+                         [&] { upper = part_proxy(scene, tree, n.child, pages, codec); });
+    return make_proxy(lower, upper, pages[node], codec);
+  }
+
+  // Merges two children's meshes into their parent's proxy, encoded into `out`.
+  ProxyMesh make_proxy(ProxyMesh& lower, ProxyMesh& upper, PendingProxyPage& out, const CellCodecOptions& codec) const {
+    ProxyMesh merged = merge_proxies(lower, upper);
+    lower = ProxyMesh{};
+    upper = ProxyMesh{};
+    ProxySimplifyStats stats;
+    ProxyMesh proxy = simplify_proxy(merged, proxy_options_, &stats);
+    out.sloppy = stats.sloppy;
+    out.record.error = proxy.error;
+    out.record.subtree_triangles = proxy.subtree_triangles;
+    if (!proxy.empty()) out.page = encode_page(proxy_scene(proxy), codec);
+    return proxy;
+  }
+
+  // Writes a node's proxy page (if it has one) and keeps its record.
+  Status write_proxy(uint32_t node, PendingProxyPage& pending) {
+    if (proxies_.size() <= node) proxies_.resize(nodes_.size());
+    StoreProxy& record = proxies_[node];
+    record = pending.record;
+    if (!pending.page) return Status::ok();
+    Result<EncodedCell>& e = *pending.page;
+    if (!e) return e.status();
+    auto page = writer_->add_page(static_cast<uint8_t>(e->codec), e->payload);
+    if (!page) return page.status();
+    record.page = *page;
+    record.triangles = e->decoded.size();
+    if (record.triangles == 0) record.page = StoreProxy::kNoPage;  // everything dropped
+    report_.proxy_bytes += e->payload.size() + store::kBlockTrailerSize;
+    report_.proxy_triangles += record.triangles;
+    report_.proxy_sloppy += pending.sloppy ? 1 : 0;
+    ++report_.proxy_pages;
+    pending.page.reset();
+    return Status::ok();
+  }
+
+  // A plan node above the parts whose children are done: its proxy from the two pending meshes.
+  Status merge_pending(uint32_t node) {
+    const auto t = std::chrono::steady_clock::now();
+    if (pending_.size() < 2) return Status::invalid_argument("build: proxy stack underflow (a bug)");
+    ProxyMesh upper = std::move(pending_.back());
+    pending_.pop_back();
+    ProxyMesh lower = std::move(pending_.back());
+    pending_.pop_back();
+    PendingProxyPage page;
+    ProxyMesh proxy;
+    arena_->execute([&] { proxy = make_proxy(lower, upper, page, codec_options()); });
+    if (Status s = write_proxy(node, page); !s) return s;
+    pending_.push_back(std::move(proxy));
+    report_.proxy_seconds += seconds_since(t);
     return Status::ok();
   }
 
@@ -835,6 +949,11 @@ class StoreBuilder {
     if (!portals_.empty()) {
       if (Status s = writer_->add_section(kPortalsSection, portals_); !s) return s;
     }
+    if (options_.proxy_triangles > 0) {
+      proxies_.resize(nodes_.size());
+      report_.proxy_root_error = proxies_[0].error;
+      if (Status s = writer_->add_section(kProxiesSection, encode_proxies(proxies_)); !s) return s;
+    }
     if (Status s = writer_->finish(); !s) return s;
     std::error_code ec;
     report_.store_bytes = fs::file_size(options_.output, ec);
@@ -864,6 +983,9 @@ class StoreBuilder {
   std::vector<KdTree::Node> nodes_;
   std::vector<StoreCell> cells_;
   std::vector<uint8_t> portals_;  // the serialized PortalGraph; empty: no portals section
+  ProxyOptions proxy_options_;
+  std::vector<StoreProxy> proxies_;  // per node of nodes_ (grown as proxies are written)
+  std::vector<ProxyMesh> pending_;   // meshes of finished subtrees whose parent is not done yet
   BuildReport report_;
 };
 

@@ -16,8 +16,13 @@
 //               (cells of at most --cell-prims references), every cell encoded (in parallel)
 //               and written as one page. A part that turns out larger than planned is split
 //               again on disk the same way before it is built.
+//               With proxies (--proxy-triangles N > 0), the part's tree then gets a proxy page
+//               at every interior node, bottom-up (src/paging/proxy.h), and the part's root mesh
+//               waits on a stack until its sibling is done; the plan's nodes above the parts
+//               merge and simplify those pending meshes as their second child finishes. The
+//               stack holds at most one mesh of about N triangles per level of the plan.
 //   5. finish   the sections model, tree, cells (sdf with --walkable, portals with a building
-//               sidecar) and the footer; StoreWriter's NAME.tmp + fsync + rename makes the
+//               sidecar, proxies) and the footer; StoreWriter's NAME.tmp + fsync + rename makes the
 //               store appear atomically.
 //
 // The sidecar of a single input (MODEL.json beside MODEL, written by frontier-gen building) is
@@ -49,6 +54,9 @@
 
 namespace frontier {
 
+// --proxy-triangles' default (README "Proxies": measured on the terrain and the building).
+inline constexpr uint32_t kDefaultProxyTriangles = 256;
+
 struct BuildOptions {
   std::vector<std::string> inputs;
   std::string output;
@@ -78,6 +86,9 @@ struct BuildOptions {
   // of writing all primitives to a temporary file first (cheaper than the file's write and
   // read). Tests turn it off to cover the spill path with PLY inputs.
   bool reparse_binary_ply = true;
+  // Triangles a proxy page of an interior node aims at (src/paging/proxy.h; at most twice as many
+  // where meshoptimizer's locked borders stop it, fewer for a subtree with fewer); 0: no proxies.
+  uint32_t proxy_triangles = kDefaultProxyTriangles;
 };
 
 struct BuildReport {
@@ -102,6 +113,12 @@ struct BuildReport {
   std::string portals_sidecar;          // the sidecar the portals section came from (empty: none)
   uint64_t portal_rooms = 0;
   uint64_t portals = 0;
+  uint64_t proxy_pages = 0;             // proxies of interior nodes (--proxy-triangles > 0)
+  uint64_t proxy_bytes = 0;             // their pages, trailers included
+  uint64_t proxy_triangles = 0;         // in all proxy pages
+  uint64_t proxy_sloppy = 0;            // proxies meshopt_simplifySloppy made (locked borders could not)
+  double proxy_root_error = 0.0;        // the root's error bound (0: the root is a leaf)
+  double proxy_seconds = 0.0;           // merging, simplifying, measuring and encoding proxies
   std::vector<std::string> warnings;    // what the readers read past (also printed on stderr)
   double seconds = 0.0;
   double ingest_seconds = 0.0, spill_seconds = 0.0, build_seconds = 0.0, encode_seconds = 0.0;

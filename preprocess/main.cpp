@@ -54,6 +54,11 @@ int main(int argc, char** argv) {
   app.add_option("--quant-bits", options.quant_bits, "bits per axis of the global position lattice (Draco), 8..30")
       ->default_val(16);
   app.add_option("--cell-prims", options.cell_prims, "at most this many primitives per cell page")->default_val(1024);
+  app.add_option("--proxy-triangles", options.proxy_triangles,
+                 "triangles of the proxy page every interior node of the store's top tree gets: a coarse "
+                 "stand-in for its whole subtree (meshoptimizer, borders locked; at most twice this where "
+                 "borders stop it) with a measured object-space error bound; 0: no proxies")
+      ->default_val(frontier::kDefaultProxyTriangles);
   app.add_option("--threads", options.threads, "threads that build and encode parts (0: all cores); reading and "
                  "partitioning use a reader thread besides")->default_val(0);
   app.add_flag("--walkable", options.walkable,
@@ -118,6 +123,15 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "  collision grid: %.1f MB in the store (%llu bricks), %.1f MB in memory, %.1f MB spilled\n",
                    static_cast<double>(r.sdf_bytes) / 1e6, static_cast<unsigned long long>(r.sdf_bricks),
                    static_cast<double>(r.sdf_memory) / 1e6, static_cast<double>(r.sdf_spill_bytes) / 1e6);
+    }
+    if (r.proxy_pages > 0) {
+      std::fprintf(stderr, "%s",
+                   fmt::format("  proxies: {} pages, {} triangles, {:.1f} MB ({:.2f} bytes/triangle of the model), "
+                               "{} sloppy, root error {:.4g}; {:.1f} s\n",
+                               r.proxy_pages, r.proxy_triangles, static_cast<double>(r.proxy_bytes) / 1e6,
+                               static_cast<double>(r.proxy_bytes) / static_cast<double>(std::max<uint64_t>(r.triangles, 1)),
+                               r.proxy_sloppy, r.proxy_root_error, r.proxy_seconds)
+                       .c_str());
     }
     if (!r.portals_sidecar.empty()) {
       std::fprintf(stderr, "  cells and portals: %llu rooms, %llu portals from %s\n",

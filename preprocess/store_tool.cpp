@@ -1,10 +1,11 @@
 // frontier-store: looks inside a store file.
 //   info FILE    what the store holds: primitives, cells, depth, bytes per triangle, codec,
-//                lattice, collision grid, cells and portals, sections, a histogram of cell sizes
+//                lattice, collision grid, cells and portals, proxies (pages, bytes apart from the
+//                cells', error bound at the root and per depth), sections, a histogram of cell sizes
 //   verify FILE  every checksum, every structural invariant (the portals section included),
 //                every cell page decoded and checked against its cell, every collision brick
-//                decoded, every page owned by exactly one cell or brick; exit 1 naming the
-//                first bad part
+//                decoded, every proxy page decoded and checked against its record, every page
+//                owned by exactly one cell, brick or proxy; exit 1 naming the first bad part
 #include "src/paging/collision_grid.h"
 #include "src/core/progress.h"
 #include "src/paging/store_model.h"
@@ -29,6 +30,33 @@ int fail(const frontier::Status& s) {
 }
 
 std::string vec(const frontier::Vec3& v) { return fmt::format("({:.9g}, {:.9g}, {:.9g})", v.x, v.y, v.z); }
+
+// The proxies line: pages and bytes (apart from the cells'), and the error bound by depth.
+std::string proxies_info(const StoreModel& model) {
+  if (model.proxies().empty()) return "proxies     none\n";
+  uint64_t pages = 0, bytes = 0, triangles = 0, model_triangles = std::max<uint64_t>(model.info().triangles, 1);
+  std::map<uint32_t, std::pair<double, double>> by_depth;  // depth: smallest, largest bound
+  std::vector<uint32_t> depth(model.nodes().size(), 0);
+  for (uint32_t i = 0; i < model.nodes().size(); ++i) {
+    const frontier::KdTree::Node& n = model.nodes()[i];
+    if (!n.is_leaf()) depth[i + 1] = depth[n.child] = depth[i] + 1;
+    const frontier::StoreProxy* p = model.proxy(i);
+    if (p == nullptr) continue;
+    ++pages;
+    bytes += model.reader().page_handle(p->page).size;
+    triangles += p->triangles;
+    auto [it, fresh] = by_depth.try_emplace(depth[i], p->error, p->error);
+    it->second.first = std::min(it->second.first, p->error);
+    it->second.second = std::max(it->second.second, p->error);
+  }
+  std::string out = fmt::format(
+      "proxies     {} pages, {} triangles, {} bytes ({:.2f} bytes/triangle of the model), root error {:.4g}\n", pages,
+      triangles, bytes, static_cast<double>(bytes) / static_cast<double>(model_triangles), model.proxies()[0].error);
+  for (const auto& [d, range] : by_depth) {
+    out += fmt::format("  depth {:>3}  error {:.4g} .. {:.4g}\n", d, range.first, range.second);
+  }
+  return out;
+}
 
 int info(const std::string& path) {
   auto opened = StoreModel::open(path);
@@ -66,7 +94,7 @@ int info(const std::string& path) {
                        in.lattice.step, in.lattice.max_error(), vec(in.lattice.origin));
   }
   out += fmt::format("bounds      {} .. {}\n", vec(in.bounds.lo), vec(in.bounds.hi));
-  out += fmt::format("bytes/tri   {:.2f} (whole file), {:.2f} (pages)\n",
+  out += fmt::format("bytes/tri   {:.2f} (whole file), {:.2f} (cell pages)\n",
                      static_cast<double>(reader.file_size()) / tris, static_cast<double>(page_bytes) / tris);
   out += fmt::format("materials   {}, lights {}, camera {}\n", in.materials.size(), in.lights.size(),
                      in.camera ? "yes" : "no");
@@ -89,6 +117,7 @@ int info(const std::string& path) {
   } else {
     out += "portals     none\n";
   }
+  out += proxies_info(model);
   out += "sections   ";
   for (const auto& s : reader.sections()) out += fmt::format(" {} {}B", s.name, s.handle.size);
   out += "\ncell sizes  (references per non-empty cell)\n";
@@ -148,6 +177,19 @@ int verify(const std::string& path, bool quiet) {
     if (frontier::Status s = (*grid)->check_all_bricks(); !s) return fail(s);
     bricks = (*grid)->counters().bricks;
   }
+  // Proxy pages: each decoded and checked against its record, none shared.
+  uint64_t proxies = 0;
+  for (uint32_t node = 0; node < model.nodes().size(); ++node) {
+    const frontier::StoreProxy* proxy = model.proxy(node);
+    if (proxy == nullptr) continue;
+    if (page_used[proxy->page]) {
+      return fail(frontier::Status::corruption(
+          fmt::format("{}: proxy of node {} page {} also belongs to a cell or brick", path, node, proxy->page)));
+    }
+    page_used[proxy->page] = 1;
+    if (frontier::Status s = model.read_proxy(node, cell); !s) return fail(s);
+    ++proxies;
+  }
   for (size_t p = 0; p < pages; ++p) {
     if (!page_used[p]) return fail(frontier::Status::corruption(fmt::format("{}: page {} belongs to nothing", path, p)));
   }
@@ -157,9 +199,10 @@ int verify(const std::string& path, bool quiet) {
         model.portals() != nullptr
             ? fmt::format(", {} rooms and {} portals", model.portals()->room_count(), model.portals()->portal_count())
             : "";
-    const std::string grid = bricks > 0 ? fmt::format(", {} collision bricks", bricks) : "";
+    const std::string grid = (bricks > 0 ? fmt::format(", {} collision bricks", bricks) : "") +
+                             (proxies > 0 ? fmt::format(", {} proxies", proxies) : "");
     std::printf("%s: ok: %zu pages checksummed, %llu decoded, %llu references in %zu cells, tree depth %u%s%s\n",
-                path.c_str(), pages, static_cast<unsigned long long>(decoded_pages + bricks),
+                path.c_str(), pages, static_cast<unsigned long long>(decoded_pages + bricks + proxies),
                 static_cast<unsigned long long>(references), model.cells().size(), model.depth(), portals.c_str(),
                 grid.c_str());
   }
@@ -177,10 +220,12 @@ int main(int argc, char** argv) {
   std::string path;
   bool quiet = false;
   auto* info_cmd = app.add_subcommand(
-      "info", "primitives, cells, depth, bytes per triangle, codec, lattice, collision grid, rooms and portals, sections, cell size histogram");
+      "info", "primitives, cells, depth, bytes per triangle, codec, lattice, collision grid, rooms and portals, proxies "
+      "(pages, bytes, error by depth), sections, cell size histogram");
   info_cmd->add_option("file", path, "store file")->required();
   auto* verify_cmd = app.add_subcommand(
-      "verify", "check every checksum and structural invariant and decode every page (cells and collision bricks); exit 1 naming the first bad one");
+      "verify", "check every checksum and structural invariant and decode every page (cells, collision bricks and proxies); exit 1 "
+      "naming the first bad one");
   verify_cmd->add_option("file", path, "store file")->required();
   verify_cmd->add_flag("-q,--quiet", quiet, "print nothing when the store is good");
   try {

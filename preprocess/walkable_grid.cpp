@@ -39,40 +39,6 @@ namespace frontier {
 namespace {
 
 constexpr double kMaxIndex = double(1 << 30);  // voxels from the origin: Coord is int32
-double segment_distance(const Vec3& p, const Vec3& a, const Vec3& b) {
-  const Vec3 ab = b - a;
-  const double len2 = glm::dot(ab, ab);
-  const double t = len2 > 0.0 ? std::clamp(glm::dot(p - a, ab) / len2, 0.0, 1.0) : 0.0;
-  return glm::length(p - (a + t * ab));
-}
-
-// Exact distance from p to triangle abc (Ericson, Real-Time Collision Detection 5.1.5), robust
-// to degenerate triangles (they fall back to their edges).
-double triangle_distance(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
-  const Vec3 ab = b - a, ac = c - a, ap = p - a;
-  const double d1 = glm::dot(ab, ap), d2 = glm::dot(ac, ap);
-  if (d1 <= 0.0 && d2 <= 0.0) return glm::length(ap);
-  const Vec3 bp = p - b;
-  const double d3 = glm::dot(ab, bp), d4 = glm::dot(ac, bp);
-  if (d3 >= 0.0 && d4 <= d3) return glm::length(bp);
-  const double vc = d1 * d4 - d3 * d2;
-  if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) return glm::length(ap - (d1 / (d1 - d3)) * ab);
-  const Vec3 cp = p - c;
-  const double d5 = glm::dot(ab, cp), d6 = glm::dot(ac, cp);
-  if (d6 >= 0.0 && d5 <= d6) return glm::length(cp);
-  const double vb = d5 * d2 - d1 * d6;
-  if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) return glm::length(ap - (d2 / (d2 - d6)) * ac);
-  const double va = d3 * d6 - d5 * d4;
-  if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0) {
-    return glm::length(bp - ((d4 - d3) / ((d4 - d3) + (d5 - d6))) * (c - b));
-  }
-  const double sum = va + vb + vc;
-  if (!(sum > 0.0)) {  // degenerate: no interior
-    return std::min({segment_distance(p, a, b), segment_distance(p, b, c), segment_distance(p, c, a)});
-  }
-  return glm::length(ap - (vb / sum) * ab - (vc / sum) * ac);
-}
-
 struct IndexTriangle {
   Vec3 a, b, c;
 };
@@ -107,10 +73,6 @@ void put_leaf(std::vector<uint8_t>& out, const openvdb::FloatTree::LeafNodeType&
 }
 
 }  // namespace
-
-double point_triangle_distance(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
-  return triangle_distance(p, a, b, c);
-}
 
 struct WalkableGridBuilder::Impl {
   double voxel;
@@ -231,7 +193,7 @@ struct WalkableGridBuilder::Impl {
         ijk[v] = iv;
         for (int ia = a0; ia <= a1; ++ia) {
           ijk[ax] = ia;
-          const double d = triangle_distance(Vec3(ijk.x(), ijk.y(), ijk.z()), a, b, c);
+          const double d = point_triangle_distance(Vec3(ijk.x(), ijk.y(), ijk.z()), a, b, c);
           if (!(d < band)) continue;
           const float value = float(d * voxel);
           float old;

@@ -58,6 +58,7 @@
 #include "src/core/geometry.h"
 #include "src/core/scene.h"
 #include "src/core/status.h"
+#include "src/paging/proxy_distance.h"
 
 #include <cstdint>
 #include <functional>
@@ -67,9 +68,8 @@
 
 namespace frontier {
 
-// The exact distance from p to triangle abc (robust to degenerate triangles), as the builder
-// writes it at every voxel centre; bench_accuracy's reference.
-double point_triangle_distance(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c);
+// The builder writes point_triangle_distance (src/paging/proxy_distance.h) at every voxel centre;
+// it is also bench_accuracy's reference.
 
 class WalkableGridBuilder {
  public:

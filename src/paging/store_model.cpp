@@ -155,6 +155,46 @@ Status read_portals(const store::StoreReader& reader, std::optional<PortalGraph>
   return Status::ok();
 }
 
+// Every node's region, by a preorder walk of a checked tree.
+std::vector<Aabb> node_regions(const std::vector<KdTree::Node>& nodes, const Aabb& bounds) {
+  std::vector<Aabb> regions(nodes.size());
+  regions[0] = bounds;
+  for (uint32_t i = 0; i < nodes.size(); ++i) {
+    const KdTree::Node& n = nodes[i];
+    if (n.is_leaf()) continue;
+    const int a = static_cast<int>(n.axis_or_leaf);
+    regions[i + 1] = regions[i];
+    regions[i + 1].hi[a] = n.split;
+    regions[n.child] = regions[i];
+    regions[n.child].lo[a] = n.split;
+  }
+  return regions;
+}
+
+// The `proxies` section when the store has one: a record per node, pages only at interior nodes.
+Status read_proxies(const store::StoreReader& reader, const std::vector<KdTree::Node>& nodes,
+                    std::vector<StoreProxy>& out) {
+  if (!reader.section(kProxiesSection)) return Status::ok();
+  const std::string where = fmt::format("{}: {} section", reader.name(), kProxiesSection);
+  auto bytes = reader.read_section(kProxiesSection);
+  if (!bytes && bytes.status().code() == Status::Code::Corruption) {
+    return Status::corruption(fmt::format("{}: {}", where, bytes.status().message()));
+  }
+  if (!bytes) return bytes.status();
+  auto proxies = decode_proxies(*bytes, reader.page_count(), where);
+  if (!proxies) return proxies.status();
+  if (proxies->size() != nodes.size()) {
+    return Status::corruption(fmt::format("{}: {} records for {} tree nodes", where, proxies->size(), nodes.size()));
+  }
+  for (size_t i = 0; i < nodes.size(); ++i) {
+    if (nodes[i].is_leaf() && (*proxies)[i].page != StoreProxy::kNoPage) {
+      return Status::corruption(fmt::format("{}: node {} is a leaf but has a proxy page", where, i));
+    }
+  }
+  out = std::move(*proxies);
+  return Status::ok();
+}
+
 }  // namespace
 
 std::vector<uint8_t> StoreModelInfo::to_bytes() const {
@@ -327,7 +367,58 @@ Status StoreModel::parse() {
   auto depth = check_tree(nodes_, cells_, info_.bounds, name);
   if (!depth) return depth.status();
   depth_ = *depth;
-  return read_portals(*reader_, portals_);
+  if (Status s = read_portals(*reader_, portals_); !s) return s;
+  if (Status s = read_proxies(*reader_, nodes_, proxies_); !s) return s;
+  if (!proxies_.empty()) node_regions_ = node_regions(nodes_, info_.bounds);
+  return Status::ok();
+}
+
+Aabb StoreModel::node_region(uint32_t node) const {
+  return node_regions_.empty() ? node_regions(nodes_, info_.bounds).at(node) : node_regions_.at(node);
+}
+
+Status StoreModel::read_proxy(uint32_t node, Scene& out) const {
+  out = Scene{};
+  const StoreProxy* p = proxy(node);
+  if (p == nullptr) return Status::invalid_argument(fmt::format("{}: node {} has no proxy page", reader_->name(), node));
+  auto page = reader_->read_page(p->page);
+  if (!page) {
+    return page.status().prefixed(fmt::format("proxy of node {} page {}: ", node, p->page));
+  }
+  return decode_proxy_page(node, page->codec, page->payload, out);
+}
+
+Status StoreModel::decode_proxy_page(uint32_t node, uint8_t codec, std::span<const uint8_t> payload,
+                                     Scene& out) const {
+  out = Scene{};
+  const StoreProxy* p = proxy(node);
+  if (p == nullptr) return Status::invalid_argument(fmt::format("{}: node {} has no proxy page", reader_->name(), node));
+  const auto corrupt = [&](const std::string& why) {
+    out = Scene{};
+    return Status::corruption(fmt::format("{}: proxy of node {} page {}: {}", reader_->name(), node, p->page, why));
+  };
+  if (!is_cell_codec(codec)) return corrupt(fmt::format("unknown codec {}", codec));
+  if (Status s = decode_cell(payload, static_cast<CellCodec>(codec), info_.lattice, out); !s) return corrupt(s.message());
+  if (out.size() != p->triangles || out.triangles.size() != out.size()) {
+    return corrupt(fmt::format("{} primitives, the proxy record says {} triangles", out.size(), p->triangles));
+  }
+  // Proxy vertices are vertices of the subtree's primitives, which may reach past the region by
+  // as much as a primitive straddling it does: only a vertex outside the model's bounds is wrong.
+  Aabb bounds = info_.bounds;
+  const double eps = 1e-9 * glm::length(bounds.extent()) + (info_.codec == CellCodec::Draco ? info_.lattice.step : 0.0);
+  bounds.lo -= Vec3(eps);
+  bounds.hi += Vec3(eps);
+  for (uint32_t i = 0; i < out.size(); ++i) {
+    const PrimRef& prim = out.prims[i];
+    if (prim.material >= info_.materials.size() || prim.source >= info_.input_primitives) {
+      return corrupt(fmt::format("triangle {} has a bad material or source", i));
+    }
+    const Triangle& t = out.triangles[prim.index];
+    if (!bounds.contains(t.v0) || !bounds.contains(t.v1) || !bounds.contains(t.v2)) {
+      return corrupt(fmt::format("triangle {} lies outside the model", i));
+    }
+  }
+  return Status::ok();
 }
 
 Status StoreModel::read_cell(uint32_t cell, Scene& out) const {

@@ -1,8 +1,9 @@
 // StoreModel: a model as the store holds it — the sections `model` (JSON: lattice, codec,
 // counts, materials, lights, camera), `tree` (the top k-d tree's nodes) and `cells` (one record
 // per top cell: bounds, content bounds, reference count, page), the optional `portals` (the
-// building's cells-and-portals graph, src/raster/portals.h) — and the decoding of a cell's page into
-// primitives. Byte layouts are in store/FORMAT.md ("Model sections", "Cell pages").
+// building's cells-and-portals graph, src/raster/portals.h), the optional `proxies` (a proxy page
+// and error bound per interior node, src/paging/proxy_section.h) — and the decoding of a cell's or
+// a proxy's page into primitives. Byte layouts are in store/FORMAT.md ("Model sections", "Cell pages").
 //
 // The top tree is resident; cell pages are decoded on demand (read_cell) or all at once
 // (load_all, for models that fit in memory: the round-trip tests and rendering a small store
@@ -11,6 +12,7 @@
 #pragma once
 
 #include "src/paging/cell_codec.h"
+#include "src/paging/proxy_section.h"
 #include "src/engine/kdtree.h"
 #include "src/raster/portals.h"
 #include "src/core/scene.h"
@@ -83,12 +85,30 @@ class StoreModel {
   // The cells-and-portals graph of the `portals` section; nullptr when the store has none.
   // Owned by the model and valid as long as it is.
   const PortalGraph* portals() const { return portals_ ? &*portals_ : nullptr; }
+  // The `proxies` section: one record per node (indexed like nodes()); empty when the store has
+  // none (built with --proxy-triangles 0, or before proxies existed).
+  const std::vector<StoreProxy>& proxies() const { return proxies_; }
+  // Node `node`'s proxy record when it has a proxy page; nullptr for a leaf, an empty subtree, a
+  // node out of range or a store without proxies.
+  const StoreProxy* proxy(uint32_t node) const {
+    return node < proxies_.size() && proxies_[node].page != StoreProxy::kNoPage ? &proxies_[node] : nullptr;
+  }
 
   // Decodes one cell's page (an empty scene for a cell without a page). Corruption naming the
   // cell and page when the page's checksum or contents are bad. Thread-safe.
   Status read_cell(uint32_t cell, Scene& out) const;
   // The same for a page already read (by the page cache): decodes and checks it.
   Status decode_page(uint32_t cell, uint8_t codec, std::span<const uint8_t> payload, Scene& out) const;
+  // Decodes node `node`'s proxy page into triangles (each with its source and material).
+  // InvalidArgument when the node has no proxy page; Corruption naming the node and the page when
+  // the page's checksum or contents are bad (a triangle count other than the record's, a bad
+  // source or material, a triangle outside the node's region). Thread-safe.
+  Status read_proxy(uint32_t node, Scene& out) const;
+  // The same for a proxy page already read (by the page cache).
+  Status decode_proxy_page(uint32_t node, uint8_t codec, std::span<const uint8_t> payload, Scene& out) const;
+  // Node `node`'s region (the root's is info().bounds). REQUIRES: node < nodes().size().
+  Aabb node_region(uint32_t node) const;
+
   // Checks a decoded cell against its record: reference count, and every primitive overlaps
   // the cell's region.
   Status check_cell(uint32_t cell, const Scene& decoded) const;
@@ -110,6 +130,8 @@ class StoreModel {
   std::vector<StoreCell> cells_;
   uint32_t depth_ = 0;
   std::optional<PortalGraph> portals_;
+  std::vector<StoreProxy> proxies_;
+  std::vector<Aabb> node_regions_;  // filled when the store has proxies
 };
 
 }  // namespace frontier

@@ -1,0 +1,252 @@
+// Proxy meshes: leaf inputs, merges and meshoptimizer simplification with a measured bound
+// (contracts and the bound's argument in proxy.h).
+#include "src/paging/proxy.h"
+
+#include "src/core/tessellate.h"
+#include "src/paging/proxy_distance.h"
+
+#include <meshoptimizer.h>
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cfloat>
+#include <cmath>
+#include <unordered_map>
+#include <unordered_set>
+
+namespace frontier {
+namespace {
+
+struct PositionHash {
+  size_t operator()(const Vec3& p) const {
+    uint64_t h = 0x9e3779b97f4a7c15ull;
+    for (int a = 0; a < 3; ++a) {
+      h ^= std::bit_cast<uint64_t>(p[a] + 0.0);  // + 0.0: -0 and +0 hash alike (they compare equal)
+      h *= 0xff51afd7ed558ccdull;
+      h ^= h >> 32;
+    }
+    return static_cast<size_t>(h);
+  }
+};
+
+struct TriangleKeyHash {
+  size_t operator()(const std::array<uint32_t, 3>& k) const {
+    return static_cast<size_t>((uint64_t{k[0]} * 0x9e3779b97f4a7c15ull) ^ (uint64_t{k[1]} * 0xc2b2ae3d27d4eb4full) ^
+                               (uint64_t{k[2]} * 0x165667b19e3779f9ull));
+  }
+};
+
+// Builds a ProxyMesh triangle by triangle: vertices welded by exact position, triangles with a
+// repeated corner dropped, and (when asked) a triangle already added (same corners in the same
+// cyclic order) dropped too.
+class MeshWelder {
+ public:
+  explicit MeshWelder(ProxyMesh& out, size_t triangles_hint) : out_(out) {
+    index_.reserve(triangles_hint);
+    out_.positions.reserve(triangles_hint);
+    out_.indices.reserve(3 * triangles_hint);
+    out_.sources.reserve(triangles_hint);
+    out_.materials.reserve(triangles_hint);
+  }
+  // False when the triangle was dropped (degenerate, or a duplicate with `dedupe`).
+  bool add(const Vec3& a, const Vec3& b, const Vec3& c, uint32_t source, uint32_t material, bool dedupe) {
+    std::array<uint32_t, 3> k = {vertex(a), vertex(b), vertex(c)};
+    if (k[0] == k[1] || k[1] == k[2] || k[2] == k[0]) return false;
+    if (dedupe) {
+      std::array<uint32_t, 3> key = k;  // the smallest index first, orientation kept
+      std::rotate(key.begin(), std::min_element(key.begin(), key.end()), key.end());
+      if (!seen_.insert(key).second) return false;
+    }
+    out_.indices.insert(out_.indices.end(), k.begin(), k.end());
+    out_.sources.push_back(source);
+    out_.materials.push_back(material);
+    return true;
+  }
+
+ private:
+  uint32_t vertex(const Vec3& p) {
+    auto [it, fresh] = index_.try_emplace(p, static_cast<uint32_t>(out_.positions.size()));
+    if (fresh) out_.positions.push_back(p);
+    return it->second;
+  }
+  ProxyMesh& out_;
+  std::unordered_map<Vec3, uint32_t, PositionHash> index_;
+  std::unordered_set<std::array<uint32_t, 3>, TriangleKeyHash> seen_;
+};
+
+// The largest distance between a curved primitive and its tessellation `tris` (vertices on the
+// surface, before snapping). Spheres: every triangle is inscribed, so the sphere's points behind
+// it lie within r - sqrt(r^2 - rho^2) of its plane (rho its circumradius). Cones: the chord's
+// sagitta at the larger radius. Boxes: exact. Quadrics (drawn as their bounding box surface): half
+// the box's smallest extent, the farthest any point inside lies from its surface.
+double tessellation_error(const Scene& scene, uint32_t i, const std::vector<Triangle>& tris, int segments) {
+  const PrimRef& p = scene.prims[i];
+  switch (p.kind) {
+    case PrimKind::Sphere: {
+      const double r = scene.spheres[p.index].radius;
+      double worst = 0.0;
+      for (const Triangle& t : tris) {
+        const double a = glm::length(t.v1 - t.v0), b = glm::length(t.v2 - t.v1), c = glm::length(t.v0 - t.v2);
+        const double area2 = glm::length(glm::cross(t.v1 - t.v0, t.v2 - t.v0));  // twice the area
+        const double rho = area2 > 0.0 ? a * b * c / (2.0 * area2) : r;
+        worst = std::max(worst, r - std::sqrt(std::max(0.0, r * r - rho * rho)));
+      }
+      return worst;
+    }
+    case PrimKind::Cone: {
+      const Cone& c = scene.cones[p.index];
+      return std::max(c.base_radius, c.apex_radius) * (1.0 - std::cos(M_PI / std::max(3, segments)));
+    }
+    case PrimKind::Quadric: {
+      const Vec3 e = scene.prim_bounds(i).extent();
+      return 0.5 * std::min({e.x, e.y, e.z});
+    }
+    default: return 0.0;
+  }
+}
+
+// Vertices, edge midpoints and centroids of a mesh's triangles (`edges`: with midpoints).
+std::vector<Vec3> samples_of(const ProxyMesh& mesh, bool edges) {
+  std::vector<Vec3> out(mesh.positions);
+  out.reserve(out.size() + mesh.triangle_count() * (edges ? 4 : 1));
+  for (size_t t = 0; t < mesh.triangle_count(); ++t) {
+    const Vec3& a = mesh.positions[mesh.indices[3 * t]];
+    const Vec3& b = mesh.positions[mesh.indices[3 * t + 1]];
+    const Vec3& c = mesh.positions[mesh.indices[3 * t + 2]];
+    out.push_back((a + b + c) / 3.0);
+    if (edges) {
+      out.push_back(0.5 * (a + b));
+      out.push_back(0.5 * (b + c));
+      out.push_back(0.5 * (c + a));
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+ProxyMesh proxy_input(const Scene& cell, const ProxyOptions& options) {
+  ProxyMesh out;
+  MeshWelder weld(out, cell.triangles.size());
+  TessellateOptions tess;
+  tess.segments = options.segments;
+  tess.smooth_normals = false;
+  std::vector<Triangle> tris;
+  const double snap_error = options.lattice ? options.lattice->step * std::sqrt(3.0) * 0.5 : 0.0;
+  for (uint32_t i = 0; i < cell.size(); ++i) {
+    const PrimRef& p = cell.prims[i];
+    if (p.kind == PrimKind::Triangle) {
+      const Triangle& t = cell.triangles[p.index];
+      out.subtree_triangles += weld.add(t.v0, t.v1, t.v2, p.source, p.material, false) ? 1 : 0;
+      continue;
+    }
+    tris.clear();
+    tessellate_primitive(tris, nullptr, cell, i, tess);
+    double error = tessellation_error(cell, i, tris, options.segments);
+    for (Triangle& t : tris) {
+      if (options.lattice) t = {options.lattice->snap(t.v0), options.lattice->snap(t.v1), options.lattice->snap(t.v2)};
+      out.subtree_triangles += weld.add(t.v0, t.v1, t.v2, p.source, p.material, false) ? 1 : 0;
+    }
+    if (options.lattice) error += snap_error;
+    out.error = std::max(out.error, error);
+  }
+  return out;
+}
+
+ProxyMesh merge_proxies(const ProxyMesh& lower, const ProxyMesh& upper) {
+  ProxyMesh out;
+  MeshWelder weld(out, lower.triangle_count() + upper.triangle_count());
+  uint64_t dropped = 0;
+  for (const ProxyMesh* m : {&lower, &upper}) {
+    for (size_t t = 0; t < m->triangle_count(); ++t) {
+      const uint32_t* k = &m->indices[3 * t];
+      if (!weld.add(m->positions[k[0]], m->positions[k[1]], m->positions[k[2]], m->sources[t], m->materials[t], true)) {
+        ++dropped;
+      }
+    }
+  }
+  out.error = std::max(lower.error, upper.error);
+  const uint64_t total = lower.subtree_triangles + upper.subtree_triangles;
+  out.subtree_triangles = total - std::min(total, dropped);
+  return out;
+}
+
+double sampled_distance(const ProxyMesh& input, const ProxyMesh& proxy) {
+  const TriangleBvh proxy_bvh(proxy.positions, proxy.indices);
+  const TriangleBvh input_bvh(input.positions, input.indices);
+  return std::max(farthest_sample(samples_of(input, false), proxy_bvh),
+                  farthest_sample(samples_of(proxy, true), input_bvh));
+}
+
+ProxyMesh simplify_proxy(const ProxyMesh& input, const ProxyOptions& options, ProxySimplifyStats* stats) {
+  ProxySimplifyStats local;
+  ProxySimplifyStats& st = stats != nullptr ? *stats : local;
+  st = {};
+  const size_t target = std::max<uint32_t>(options.target_triangles, 1);
+  if (input.triangle_count() <= target) return input;
+  st.simplified = true;
+
+  // meshoptimizer takes floats: positions relative to the mesh's centre keep their precision
+  // far from the origin. Its output refers to the input's vertices, which stay exact doubles.
+  Aabb box;
+  for (const Vec3& p : input.positions) box.extend(p);
+  const Vec3 centre = box.center();
+  std::vector<float> local_positions(3 * input.positions.size());
+  for (size_t v = 0; v < input.positions.size(); ++v) {
+    for (int a = 0; a < 3; ++a) local_positions[3 * v + a] = static_cast<float>(input.positions[v][a] - centre[a]);
+  }
+  const size_t stride = 3 * sizeof(float);
+  std::vector<uint32_t> kept(input.indices.size());
+  float error = 0.0f;
+  size_t count = meshopt_simplify(kept.data(), input.indices.data(), input.indices.size(), local_positions.data(),
+                                  input.positions.size(), stride, 3 * target, FLT_MAX, meshopt_SimplifyLockBorder,
+                                  &error);
+  if (count == 0 || count > 6 * target) {
+    std::vector<uint32_t> sloppy(input.indices.size());
+    float sloppy_error = 0.0f;
+    const size_t n = meshopt_simplifySloppy(sloppy.data(), input.indices.data(), input.indices.size(),
+                                            local_positions.data(), input.positions.size(), stride, 3 * target,
+                                            FLT_MAX, &sloppy_error);
+    if (n > 0 && (count == 0 || n < count)) {
+      kept = std::move(sloppy);
+      count = n;
+      error = sloppy_error;
+      st.sloppy = true;
+    }
+  }
+  if (count == 0) return input;  // nothing simplified it: the input is its own proxy
+  st.estimate = static_cast<double>(error) *
+                static_cast<double>(meshopt_simplifyScale(local_positions.data(), input.positions.size(), stride));
+
+  // Every input vertex names the first input triangle using it: the source and material of the
+  // proxy triangles whose first corner it is.
+  std::vector<uint32_t> first_triangle(input.positions.size(), UINT32_MAX);
+  for (size_t i = input.indices.size(); i-- > 0;) first_triangle[input.indices[i]] = static_cast<uint32_t>(i / 3);
+  ProxyMesh out;
+  MeshWelder weld(out, count / 3);
+  for (size_t i = 0; i < count; i += 3) {
+    const uint32_t t = first_triangle[kept[i]];
+    weld.add(input.positions[kept[i]], input.positions[kept[i + 1]], input.positions[kept[i + 2]], input.sources[t],
+             input.materials[t], false);
+  }
+  if (out.empty()) return input;
+  out.subtree_triangles = input.subtree_triangles;
+  st.measured = sampled_distance(input, out);
+  out.error = std::max(st.estimate, st.measured) + input.error;
+  return out;
+}
+
+Scene proxy_scene(const ProxyMesh& mesh) {
+  Scene scene;
+  scene.triangles.reserve(mesh.triangle_count());
+  scene.prims.reserve(mesh.triangle_count());
+  for (size_t t = 0; t < mesh.triangle_count(); ++t) {
+    const uint32_t* k = &mesh.indices[3 * t];
+    scene.add_triangle({mesh.positions[k[0]], mesh.positions[k[1]], mesh.positions[k[2]]}, mesh.sources[t],
+                       mesh.materials[t]);
+  }
+  return scene;
+}
+
+}  // namespace frontier

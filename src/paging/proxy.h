@@ -1,0 +1,87 @@
+// Proxies: coarse triangle stand-ins for whole subtrees of the store's top tree, each with an
+// object-space error bound (DESIGN.md "The k-d tree, in two levels, with a proxy at every interior
+// node"; the section and pages: store/FORMAT.md "proxies").
+//
+// A ProxyMesh is an indexed triangle mesh whose vertices are distinct (welded by exact position)
+// and whose triangles each keep a source id and a material, so a viewer can shade and name them.
+// The builder makes them bottom-up:
+//   leaf   proxy_input(cell): the cell's triangles, curved primitives tessellated (for proxies
+//          only) with their measured chord error as the bound, snapped to the store's lattice.
+//   node   merge_proxies(lower, upper): both children's meshes welded, exact duplicate triangles
+//          (a primitive straddling cells is stored in each) dropped; the bound is the larger one.
+//          simplify_proxy(merged): meshoptimizer's simplifier with locked borders (so sibling
+//          proxies meet), sloppy clustering when that cannot get within twice the target.
+// A proxy's vertices are always vertices of its input (meshoptimizer only removes vertices), so
+// they stay on the global lattice and encode with the store's cell codecs.
+//
+// The bound of a simplified node = max(meshoptimizer's error estimate, the measured two-sided
+// sampled distance between the proxy and its input) + the input's bound: by the triangle
+// inequality, a chain of such bounds covers the distance to the subtree's original geometry. The
+// measured distance samples every input vertex and triangle centroid against the proxy and every
+// proxy vertex, edge midpoint and centroid against the input (TriangleBvh queries).
+//
+// All functions are pure and may run on any number of threads at once.
+#pragma once
+
+#include "src/core/scene.h"
+#include "src/paging/lattice.h"
+
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+namespace frontier {
+
+struct ProxyMesh {
+  std::vector<Vec3> positions;      // distinct, every one used by a triangle
+  std::vector<uint32_t> indices;    // three per triangle, into positions
+  std::vector<uint32_t> sources;    // per triangle: the input primitive it stands for
+  std::vector<uint32_t> materials;  // per triangle
+  double error = 0.0;               // object-space bound on the distance to the original geometry
+  uint64_t subtree_triangles = 0;   // triangles of the subtree (tessellated; duplicates dropped
+                                    // where a merge still saw both copies)
+
+  size_t triangle_count() const { return sources.size(); }
+  bool empty() const { return sources.empty(); }
+};
+
+struct ProxyOptions {
+  // Simplify a node's input to about this many triangles (a node with fewer keeps them all).
+  uint32_t target_triangles = 256;
+  // Tessellated curved primitives are snapped to it (the Draco codec requires lattice positions).
+  std::optional<Lattice> lattice;
+  // Segments around a circle for curved primitives (src/core/tessellate.h).
+  int segments = 12;
+};
+
+// What simplify_proxy did, for the build's report.
+struct ProxySimplifyStats {
+  bool simplified = false;   // the input had more triangles than the target
+  bool sloppy = false;       // meshopt_simplifySloppy replaced meshopt_simplify's result
+  double estimate = 0.0;     // meshoptimizer's absolute error (result_error x simplifyScale)
+  double measured = 0.0;     // sampled two-sided distance between proxy and input
+};
+
+// A leaf's input: `cell`'s primitives as one welded mesh. Triangles are taken as they are (they
+// already lie on the lattice in a Draco store); spheres, cones, boxes and quadrics (as their
+// bounding box surface) are tessellated and snapped; `error` is the largest distance between a
+// curved primitive and its tessellation (plus the snapping), 0 when there are only triangles.
+// Zero-area triangles (after welding) are dropped.
+ProxyMesh proxy_input(const Scene& cell, const ProxyOptions& options);
+
+// Both meshes in one, welded by exact position; a triangle that appears in both (same corners,
+// same orientation) is kept once. error = max of both; subtree_triangles = sum less duplicates.
+ProxyMesh merge_proxies(const ProxyMesh& lower, const ProxyMesh& upper);
+
+// The proxy of `input`: a copy when it has at most options.target_triangles triangles (same
+// error), else simplified (at most twice the target unless even sloppy clustering cannot get
+// there) with the bound described above. Never empty for a non-empty input.
+ProxyMesh simplify_proxy(const ProxyMesh& input, const ProxyOptions& options, ProxySimplifyStats* stats = nullptr);
+
+// The sampled two-sided distance between two meshes (see above; `a` is the input, `b` the proxy).
+double sampled_distance(const ProxyMesh& input, const ProxyMesh& proxy);
+
+// The mesh as a Scene of triangles (source and material kept), to encode as a page.
+Scene proxy_scene(const ProxyMesh& mesh);
+
+}  // namespace frontier
