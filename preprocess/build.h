@@ -55,7 +55,7 @@
 namespace frontier {
 
 // --proxy-triangles' default (README "Proxies": measured on the terrain and the building).
-inline constexpr uint32_t kDefaultProxyTriangles = 256;
+inline constexpr uint32_t kDefaultProxyTriangles = 128;
 
 struct BuildOptions {
   std::vector<std::string> inputs;
