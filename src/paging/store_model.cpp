@@ -139,15 +139,24 @@ Result<uint32_t> check_tree(const std::vector<KdTree::Node>& nodes, const std::v
   return depth;
 }
 
+// An optional section's bytes (Corruption naming the store and the section when its block is
+// damaged); `where` says which ("STORE: NAME section").
+Result<std::vector<uint8_t>> read_optional_section(const store::StoreReader& reader, std::string_view name,
+                                                   std::string& where) {
+  where = fmt::format("{}: {} section", reader.name(), name);
+  auto bytes = reader.read_section(name);
+  if (!bytes && bytes.status().code() == Status::Code::Corruption) {
+    return Status::corruption(fmt::format("{}: {}", where, bytes.status().message()));
+  }
+  return bytes;
+}
+
 // The `portals` section when the store has one (Corruption naming the store and the section
 // when it is damaged); `out` stays empty without it.
 Status read_portals(const store::StoreReader& reader, std::optional<PortalGraph>& out) {
   if (!reader.section(kPortalsSection)) return Status::ok();
-  const std::string where = fmt::format("{}: {} section", reader.name(), kPortalsSection);
-  auto bytes = reader.read_section(kPortalsSection);
-  if (!bytes && bytes.status().code() == Status::Code::Corruption) {
-    return Status::corruption(fmt::format("{}: {}", where, bytes.status().message()));
-  }
+  std::string where;
+  auto bytes = read_optional_section(reader, kPortalsSection, where);
   if (!bytes) return bytes.status();
   auto graph = PortalGraph::deserialize(*bytes, where);
   if (!graph) return graph.status();
@@ -175,11 +184,8 @@ std::vector<Aabb> node_regions(const std::vector<KdTree::Node>& nodes, const Aab
 Status read_proxies(const store::StoreReader& reader, const std::vector<KdTree::Node>& nodes,
                     std::vector<StoreProxy>& out) {
   if (!reader.section(kProxiesSection)) return Status::ok();
-  const std::string where = fmt::format("{}: {} section", reader.name(), kProxiesSection);
-  auto bytes = reader.read_section(kProxiesSection);
-  if (!bytes && bytes.status().code() == Status::Code::Corruption) {
-    return Status::corruption(fmt::format("{}: {}", where, bytes.status().message()));
-  }
+  std::string where;
+  auto bytes = read_optional_section(reader, kProxiesSection, where);
   if (!bytes) return bytes.status();
   auto proxies = decode_proxies(*bytes, reader.page_count(), where);
   if (!proxies) return proxies.status();
