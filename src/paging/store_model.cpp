@@ -361,7 +361,7 @@ Status StoreModel::check_cell(uint32_t cell, const Scene& decoded) const {
   }
   // Snapped or decoded geometry may sit a lattice step across the region: allow that much.
   Aabb region = c.bounds;
-  const double slack = info_.codec == CellCodec::Draco ? info_.lattice.step : 0.0;
+  const double slack = cell_codec_on_lattice(info_.codec) ? info_.lattice.step : 0.0;
   const double eps = slack + 1e-9 * glm::length(info_.bounds.extent());
   region.lo -= Vec3(eps);
   region.hi += Vec3(eps);
