@@ -5,7 +5,6 @@
 // Draco store of the same model. The properties meshopt shares with Draco (shared seam
 // vertices, lattice-degenerate triangles dropped, empty and single-triangle cells, normals) are
 // the CellCodecOnLattice tests of test_cell_codec.cpp, which run both codecs.
-#include "preprocess/build.h"
 #include "src/paging/cell_codec.h"
 #include "src/paging/store_model.h"
 #include "store/store_file.h"
@@ -174,18 +173,14 @@ TEST(CellCodecCorruption, DamagedMeshoptPagesNeverCrash) {
 
 const fs::path& scratch() { return testing::scratch_dir("frontier_meshopt"); }
 
-BuildOptions store_options(const std::string& in, const std::string& out, CellCodec codec) {
-  BuildOptions o;
-  o.inputs = {in};
-  o.output = out;
-  o.codec = codec;
-  o.quiet = true;
-  o.threads = 2;
-  o.cell_prims = 64;
-  return o;
+// Builds `model` into `out` with `frontier-build --codec CODEC`, as a user does.
+void build_with(const std::string& codec, const std::string& model, const std::string& out) {
+  const auto r = proc::run_binary(FRONTIER_BUILD_PATH, {model, "-o", out, "--codec", codec, "--cell-prims", "64",
+                                                        "--threads", "2", "--quiet"}, scratch());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
 }
 
-// The meshopt store (built by the command line, as a user does) decodes to the Draco store's
+// The meshopt store decodes to the Draco store's
 // primitives — the same multiset of (source, material, lattice triangle) and the same shapes —
 // and renders the same ids, pixel for pixel up to ties, with frustum casting and ray walking.
 TEST(BuildStoreMeshopt, RendersTheSameIdsAsTheDracoStore) {
@@ -196,12 +191,9 @@ TEST(BuildStoreMeshopt, RendersTheSameIdsAsTheDracoStore) {
   for (const std::string& model : {building.string(), testing::spd("tree")}) {
     SCOPED_TRACE(model);
     const std::string draco = (scratch() / "draco.frontier").string(), meshopt = (scratch() / "meshopt.frontier").string();
-    auto report = build_store(store_options(model, draco, CellCodec::Draco));
-    ASSERT_TRUE(report.is_ok()) << report.status().to_string();
-    r = proc::run_binary(FRONTIER_BUILD_PATH,
-                         {model, "-o", meshopt, "--codec", "meshopt", "--cell-prims", "64", "--threads", "2", "--quiet"},
-                         scratch());
-    ASSERT_EQ(r.exit_code, 0) << r.err;
+    build_with("draco", model, draco);
+    build_with("meshopt", model, meshopt);
+    if (HasFatalFailure()) return;
 
     Scene scenes[2];
     KdTree trees[2];
@@ -236,7 +228,8 @@ TEST(BuildStoreMeshopt, RendersTheSameIdsAsTheDracoStore) {
 // faulty writer would) is Corruption naming the store, cell and page; never a crash.
 TEST(BuildStoreMeshopt, DamagedPagesAreCorruptionNamingTheCellAndPage) {
   const std::string out = (scratch() / "damaged.frontier").string();
-  ASSERT_TRUE(build_store(store_options(testing::spd("tree"), out, CellCodec::Meshopt)).is_ok());
+  build_with("meshopt", testing::spd("tree"), out);
+  if (HasFatalFailure()) return;
   auto model = StoreModel::open(out);
   ASSERT_TRUE(model.is_ok()) << model.status().to_string();
   std::mt19937_64 rng(25);
