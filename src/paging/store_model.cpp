@@ -411,7 +411,7 @@ Status StoreModel::decode_proxy_page(uint32_t node, uint8_t codec, std::span<con
   // Proxy vertices are vertices of the subtree's primitives, which may reach past the region by
   // as much as a primitive straddling it does: only a vertex outside the model's bounds is wrong.
   Aabb bounds = info_.bounds;
-  const double eps = 1e-9 * glm::length(bounds.extent()) + (info_.codec == CellCodec::Draco ? info_.lattice.step : 0.0);
+  const double eps = 1e-9 * glm::length(bounds.extent()) + (cell_codec_on_lattice(info_.codec) ? info_.lattice.step : 0.0);
   bounds.lo -= Vec3(eps);
   bounds.hi += Vec3(eps);
   for (uint32_t i = 0; i < out.size(); ++i) {
@@ -458,7 +458,7 @@ Status StoreModel::check_cell(uint32_t cell, const Scene& decoded) const {
   }
   // Snapped or decoded geometry may sit a lattice step across the region: allow that much.
   Aabb region = c.bounds;
-  const double slack = info_.codec == CellCodec::Draco ? info_.lattice.step : 0.0;
+  const double slack = cell_codec_on_lattice(info_.codec) ? info_.lattice.step : 0.0;
   const double eps = slack + 1e-9 * glm::length(info_.bounds.extent());
   region.lo -= Vec3(eps);
   region.hi += Vec3(eps);
