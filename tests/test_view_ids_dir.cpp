@@ -49,6 +49,16 @@ const Orbit& orbit() {
 
 std::string bytes_of(const fs::path& p) { return proc::slurp(p); }
 
+// DIR/frame_00000.ids .. frame_0000{frames-1}.ids exist with `bytes` each, and no more.
+void expect_frame_files(const fs::path& dir, int frames, uintmax_t bytes) {
+  for (int f = 0; f < frames; ++f) {
+    const fs::path file = dir / ("frame_0000" + std::to_string(f) + ".ids");
+    ASSERT_TRUE(fs::exists(file)) << file;
+    EXPECT_EQ(fs::file_size(file), bytes) << file;
+  }
+  EXPECT_FALSE(fs::exists(dir / ("frame_0000" + std::to_string(frames) + ".ids")));
+}
+
 TEST(ViewIdsDir, HeadlessWalkWritesEveryFrame) {
   const Orbit& t = orbit();
   const fs::path dir = scratch() / "ids" / "nested", last = scratch() / "last.ids";
@@ -57,12 +67,7 @@ TEST(ViewIdsDir, HeadlessWalkWritesEveryFrame) {
                              "--threads", "2", "--ids-dir", dir.string(), "--ids", last.string()},
                             scratch());
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  for (int f = 0; f < 3; ++f) {
-    const fs::path file = dir / ("frame_0000" + std::to_string(f) + ".ids");
-    ASSERT_TRUE(fs::exists(file)) << file;
-    EXPECT_EQ(fs::file_size(file), 64u * 48u * 4u) << file;
-  }
-  EXPECT_FALSE(fs::exists(dir / "frame_00003.ids"));
+  expect_frame_files(dir, 3, 64u * 48u * 4u);
   const std::string frame2 = bytes_of(dir / "frame_00002.ids");
   EXPECT_EQ(frame2, bytes_of(last)) << "the last frame's file differs from --ids";
   EXPECT_NE(frame2, std::string(frame2.size(), '\xff')) << "all background";
@@ -96,11 +101,7 @@ TEST(ViewIdsDir, WindowReplayWritesEveryFrame) {
                                                   t.path, "--size", "48x32", "--threads", "2", "--ids-dir", dir.string()},
                             scratch());
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  for (int f = 0; f < 3; ++f) {
-    const fs::path file = dir / ("frame_0000" + std::to_string(f) + ".ids");
-    ASSERT_TRUE(fs::exists(file)) << file;
-    EXPECT_EQ(fs::file_size(file), 48u * 32u * 4u) << file;
-  }
+  expect_frame_files(dir, 3, 48u * 32u * 4u);
   // Without a path there are no frames to number: a bad option.
   const auto bad = run_binary(FRONTIER_VIEW_PATH, {t.store, "--ids-dir", dir.string()}, scratch());
   EXPECT_EQ(bad.exit_code, 2) << bad.err;
