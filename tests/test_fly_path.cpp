@@ -131,6 +131,20 @@ TEST(FlyPath, ClimbsWithoutJitter) {
   EXPECT_LT(bend, 0.2 * mean_step) << "the eye's height jerks from frame to frame";
 }
 
+// A model cut short in its faces: the fly path's ground pass names the file and the byte offset and
+// exits 1 (bad input), writing no path.
+TEST(FlyPath, TruncatedModelIsAnErrorNamingIt) {
+  const fs::path whole = scratch() / "whole.ply", cut = scratch() / "cut.ply", cam = scratch() / "cut.cam";
+  ASSERT_EQ(run_gen({"terrain", "--grid", "16", "-q", "-o", whole.string()}).exit_code, 0);
+  fs::copy_file(whole, cut, fs::copy_options::overwrite_existing);
+  fs::resize_file(cut, fs::file_size(whole) - 100);
+  const auto r = run_gen({"path", "--model", cut.string(), "--kind", "fly", "--frames", "10", "-o", cam.string()});
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find(cut.string()), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("byte "), std::string::npos) << r.err;  // the offset
+  EXPECT_FALSE(fs::exists(cam));
+}
+
 // --- the ground map ---------------------------------------------------------------------------
 
 // z of the triangle's plane at (x, y) for a point inside its projection.
