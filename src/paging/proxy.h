@@ -52,7 +52,7 @@ struct ProxyOptions {
   // Tessellated curved primitives are snapped to it (the Draco codec requires lattice positions).
   std::optional<Lattice> lattice;
   // Segments around a circle for curved primitives (src/core/tessellate.h).
-  int segments = 12;
+  int segments = 6;
 };
 
 // What simplify_proxy did, for the build's report.
