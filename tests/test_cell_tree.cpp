@@ -13,6 +13,7 @@
 #include "tests/test_files.h"
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <filesystem>
 #include <random>
@@ -86,7 +87,7 @@ void expect_stored_trees_equal_builds(const std::string& store) {
   EXPECT_GE(references, info.references);
 }
 
-TEST(CellTree, StoredTreesEqualTheViewersBuildForEveryCodec) {
+TEST(StoreCellTree, StoredTreesEqualTheViewersBuildForEveryCodec) {
   const std::vector<std::pair<std::string, std::string>> models = {
       {"terrain", generated("terrain", 20000)},
       {"building", generated("building", 20000)},
@@ -106,7 +107,7 @@ TEST(CellTree, StoredTreesEqualTheViewersBuildForEveryCodec) {
 // degenerate and duplicate (coplanar, overlapping) triangles, a tight cluster in a large region
 // (chains of empty-space cuts), and splits that are no candidate of the stored bins (stored as
 // doubles).
-TEST(CellTree, HardCasesAssembleExactly) {
+TEST(StoreCellTree, HardCasesAssembleExactly) {
   std::mt19937_64 rng(25);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   std::vector<std::pair<std::string, Scene>> cases;
@@ -171,7 +172,7 @@ TEST(CellTree, HardCasesAssembleExactly) {
 }
 
 // A tree that is not the one build() makes from the cell is refused at encoding time.
-TEST(CellTree, EncodingRefusesATreeOfOtherPrimitives) {
+TEST(StoreCellTree, EncodingRefusesATreeOfOtherPrimitives) {
   Scene a, b;
   for (int i = 0; i < 100; ++i) {
     const Vec3 p(i * 0.1, (i % 7) * 0.1, (i % 3) * 0.1);
@@ -191,7 +192,7 @@ TEST(CellTree, EncodingRefusesATreeOfOtherPrimitives) {
 
 // Stores without trees (built before them, or with --no-cell-trees) and viewers whose refine
 // options differ from the store's build the trees at page-in: the same frames, id for id.
-TEST(CellTree, StoresWithoutTreesAndOtherOptionsRenderTheSameIds) {
+TEST(StoreCellTree, StoresWithoutTreesAndOtherOptionsRenderTheSameIds) {
   const std::string model = generated("building", 20000);
   const std::string with = store_of(model, "building_draco", CellCodec::Draco, true);
   const std::string without = store_of(model, "building_draco_notrees", CellCodec::Draco, false);
@@ -206,6 +207,13 @@ TEST(CellTree, StoresWithoutTreesAndOtherOptionsRenderTheSameIds) {
   }
   auto treed = StoreModel::open(with);
   ASSERT_TRUE(treed.is_ok());
+  // Model section version 2 only with trees: readers that predate them refuse those at open.
+  const auto version = [](const StoreModel& m) {
+    auto bytes = m.reader().read_section(kModelSection);
+    return bytes.is_ok() ? nlohmann::json::parse(bytes->begin(), bytes->end()).at("version").get<int>() : 0;
+  };
+  EXPECT_EQ(version(**plain), 1);
+  EXPECT_EQ(version(**treed), 2);
   KdBuildOptions other = viewer_refine();
   other.max_cell_prims = 8;
   for (uint32_t c = 0; c < (*treed)->cells().size(); ++c) {
@@ -251,7 +259,7 @@ TEST(CellTree, StoresWithoutTreesAndOtherOptionsRenderTheSameIds) {
 
 // Damage to a page's tree (past its checksum: the page cache hands decode_page the bytes) is
 // Corruption naming the cell and page, or a tree that still assembles; never a crash.
-TEST(CellTree, DamagedTreesAreCorruptionNamingThePage) {
+TEST(StoreCellTree, DamagedTreesAreCorruptionNamingThePage) {
   const std::string store = store_of(generated("terrain", 20000), "terrain_meshopt", CellCodec::Meshopt, true);
   auto model = StoreModel::open(store);
   ASSERT_TRUE(model.is_ok());
@@ -304,7 +312,7 @@ TEST(CellTree, DamagedTreesAreCorruptionNamingThePage) {
 }
 
 // frontier-store info names the trees and their build options; verify assembles every tree.
-TEST(CellTree, StoreToolReportsAndVerifiesTrees) {
+TEST(StoreCellTree, StoreToolReportsAndVerifiesTrees) {
   const std::string store = store_of(generated("terrain", 20000), "terrain_draco", CellCodec::Draco, true);
   auto r = run_binary(FRONTIER_STORE_PATH, {"info", store}, scratch());
   ASSERT_EQ(r.exit_code, 0) << r.err;

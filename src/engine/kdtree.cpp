@@ -136,7 +136,7 @@ class KdBuilder {
     if (depth > max_depth_) return corrupt(fmt::format("deeper than {}", max_depth_));
     tree_.nodes_.push_back({});
     tree_.depth_ = std::max(tree_.depth_, depth);
-    const int axis = splits.next_axis();
+    const int axis = splits.next_axis(levels_[depth].size());
     if (axis == KdSplitSource::kLeaf) {
       if (tree_.refs_.size() + levels_[depth].size() > max_references_) {
         return corrupt(fmt::format("more than {} references", max_references_));

@@ -15,6 +15,7 @@
 #include "src/core/scene.h"
 #include "src/core/status.h"
 
+#include <cstddef>
 #include <cstdint>
 #include <optional>
 #include <vector>
@@ -50,8 +51,9 @@ class KdSplitSource {
   static constexpr int kLeaf = -1;
   static constexpr int kBad = -2;
   virtual ~KdSplitSource() = default;
-  // The next node: kLeaf, its split axis (0..2), or kBad when the stored tree is damaged.
-  virtual int next_axis() = 0;
+  // The next node, which holds `items` items: kLeaf, its split axis (0..2), or kBad when the
+  // stored tree is damaged.
+  virtual int next_axis(size_t items) = 0;
   // The split position on `axis` of the node next_axis() just named, given its region and the
   // extent its items occupy (their bounds clipped to the region; see KdTree::split_candidate).
   virtual double split(const Aabb& region, const Aabb& occupied, int axis) = 0;

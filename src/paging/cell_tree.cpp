@@ -1,9 +1,13 @@
-// In-cell trees: the symbol stream of a tree's splits and its assembly over a decoded cell
+// In-cell trees: the symbol streams of a tree's splits and its assembly over a decoded cell
 // (contracts: cell_tree.h; layout: store/FORMAT.md "In-cell trees").
 //
-// Tree bytes: u8 version 0x4B, varint bins B, varint node count N, a value stream of N symbols
-// (0 leaf; 1 + axis·(B+1) + k: the axis's split candidate k in 0..B; 1 + 3·(B+1) + axis: a split
-// stored as a double), then one f64 per double-stored split, in preorder, and nothing more.
+// Tree bytes: u8 version 0x4C, varint bins B, varint node symbol count N, a value stream of N
+// node symbols, a value stream of the bin splits' candidates, then one f64 per split stored as a
+// double, and nothing more. A node without items is a leaf (the builder never splits one) and
+// takes no symbol; any other node's symbol is 0 for a leaf, else 1 + 4·axis + kind, kind 0 = the
+// low end of the occupied extent (candidate 0), 1 = its high end (candidate B), 2 = a bin boundary
+// (candidate 1..B-1, in the second stream), 3 = a stored double. Two small alphabets instead of
+// one of 3·(B+1) + 4 symbols: the entropy coder's per-page tables are most of a page's tree.
 #include "src/paging/cell_tree.h"
 
 #include "src/core/byte_io.h"
@@ -18,12 +22,18 @@
 namespace frontier {
 namespace {
 
-constexpr uint8_t kTreeVersion = 0x4B;
+constexpr uint8_t kTreeVersion = 0x4C;
 constexpr int kMaxBins = 1024;
-// A stored tree is refused when it would hold more references than this many per primitive
-// (plus a constant): real trees hold a few per primitive; the cap bounds a damaged page's memory.
+// A stored tree is refused when it would hold more references (nodes) than this many per
+// primitive, plus a constant: real trees hold a few; the caps bound a damaged page's memory.
 constexpr size_t kMaxReferencesPerPrim = 64;
 constexpr size_t kMaxNodesPerPrim = 64;
+
+enum SplitKind : uint32_t { kLowEnd = 0, kHighEnd = 1, kBin = 2, kStored = 3 };
+constexpr uint32_t kLeafSymbol = 0;
+constexpr uint32_t kMaxNodeSymbol = 1 + 4 * 2 + kStored;
+
+uint32_t node_symbol(int axis, SplitKind kind) { return 1 + 4 * static_cast<uint32_t>(axis) + kind; }
 
 int effective_bins(const KdBuildOptions& options) { return std::max(options.bins, 2); }
 
@@ -34,21 +44,22 @@ uint32_t depth_limit(const KdBuildOptions& options, size_t prims) {
 }
 
 size_t reference_limit(size_t prims) { return kMaxReferencesPerPrim * prims + 1024; }
+size_t node_limit(size_t prims) { return kMaxNodesPerPrim * prims + 1024; }
 
 bool same_box(const Aabb& a, const Aabb& b) { return a.lo == b.lo && a.hi == b.hi; }
-
-uint32_t escape_symbol(int bins, int axis) { return 1 + 3 * static_cast<uint32_t>(bins + 1) + static_cast<uint32_t>(axis); }
+bool same_double(double a, double b) { return std::bit_cast<uint64_t>(a) == std::bit_cast<uint64_t>(b); }
 
 // Reads a built tree's nodes in preorder and names each split by its candidate (encoding).
 class SymbolWriter final : public KdSplitSource {
  public:
   SymbolWriter(const KdTree& tree, int bins) : tree_(tree), bins_(bins) {}
 
-  int next_axis() override {
+  int next_axis(size_t items) override {
     if (next_ >= tree_.nodes().size()) return kBad;
     const KdTree::Node& n = tree_.nodes()[next_++];
+    if (items == 0) return n.is_leaf() ? kLeaf : kBad;  // implied: no symbol
     if (n.is_leaf()) {
-      symbols_.push_back(0);
+      nodes_.push_back(kLeafSymbol);
       return kLeaf;
     }
     return n.axis_or_leaf <= 2 ? static_cast<int>(n.axis_or_leaf) : kBad;
@@ -56,63 +67,78 @@ class SymbolWriter final : public KdSplitSource {
 
   double split(const Aabb& region, const Aabb& occupied, int axis) override {
     const double pos = tree_.nodes()[next_ - 1].split;
-    for (int k = 0; k <= bins_; ++k) {
-      if (std::bit_cast<uint64_t>(KdTree::split_candidate(region, occupied, axis, k, bins_)) ==
-          std::bit_cast<uint64_t>(pos)) {
-        symbols_.push_back(1 + static_cast<uint32_t>(axis * (bins_ + 1) + k));
-        return pos;
+    if (same_double(KdTree::split_candidate(region, occupied, axis, 0, bins_), pos)) {
+      nodes_.push_back(node_symbol(axis, kLowEnd));
+    } else if (same_double(KdTree::split_candidate(region, occupied, axis, bins_, bins_), pos)) {
+      nodes_.push_back(node_symbol(axis, kHighEnd));
+    } else {
+      for (int k = 1; k < bins_; ++k) {
+        if (same_double(KdTree::split_candidate(region, occupied, axis, k, bins_), pos)) {
+          nodes_.push_back(node_symbol(axis, kBin));
+          bins_taken_.push_back(static_cast<uint32_t>(k - 1));
+          return pos;
+        }
       }
+      nodes_.push_back(node_symbol(axis, kStored));
+      doubles_.push_back(pos);
     }
-    symbols_.push_back(escape_symbol(bins_, axis));
-    doubles_.push_back(pos);
     return pos;
   }
 
   size_t consumed() const { return next_; }
-  const std::vector<uint32_t>& symbols() const { return symbols_; }
+  const std::vector<uint32_t>& nodes() const { return nodes_; }
+  const std::vector<uint32_t>& bins_taken() const { return bins_taken_; }
   const std::vector<double>& doubles() const { return doubles_; }
 
  private:
   const KdTree& tree_;
   int bins_;
   size_t next_ = 0;
-  std::vector<uint32_t> symbols_;
+  std::vector<uint32_t> nodes_, bins_taken_;
   std::vector<double> doubles_;
 };
 
 // Reads stored symbols back into splits (decoding).
 class SymbolReader final : public KdSplitSource {
  public:
-  SymbolReader(const std::vector<uint32_t>& symbols, const std::vector<double>& doubles, int bins)
-      : symbols_(symbols), doubles_(doubles), bins_(bins) {}
+  SymbolReader(const std::vector<uint32_t>& nodes, const std::vector<uint32_t>& bins_taken,
+               const std::vector<double>& doubles, int bins)
+      : nodes_(nodes), bins_taken_(bins_taken), doubles_(doubles), bins_(bins) {}
 
-  int next_axis() override {
-    if (next_ >= symbols_.size()) return kBad;
-    const uint32_t s = symbols_[next_++];
-    if (s == 0) return kLeaf;
-    const auto per_axis = static_cast<uint32_t>(bins_ + 1);
-    if (s <= 3 * per_axis) {
-      candidate_ = static_cast<int>((s - 1) % per_axis);
-      return static_cast<int>((s - 1) / per_axis);
+  int next_axis(size_t items) override {
+    if (items == 0) return kLeaf;
+    if (next_ >= nodes_.size()) return kBad;
+    const uint32_t s = nodes_[next_++];
+    if (s == kLeafSymbol) return kLeaf;
+    kind_ = static_cast<SplitKind>((s - 1) % 4);
+    if ((kind_ == kBin && next_bin_ >= bins_taken_.size()) || (kind_ == kStored && next_double_ >= doubles_.size())) {
+      return kBad;
     }
-    candidate_ = -1;
-    if (next_double_ >= doubles_.size()) return kBad;
-    return static_cast<int>(s - escape_symbol(bins_, 0));
+    return static_cast<int>((s - 1) / 4);
   }
 
   double split(const Aabb& region, const Aabb& occupied, int axis) override {
-    if (candidate_ < 0) return doubles_[next_double_++];
-    return KdTree::split_candidate(region, occupied, axis, candidate_, bins_);
+    switch (kind_) {
+      case kLowEnd: return KdTree::split_candidate(region, occupied, axis, 0, bins_);
+      case kHighEnd: return KdTree::split_candidate(region, occupied, axis, bins_, bins_);
+      case kBin:
+        return KdTree::split_candidate(region, occupied, axis, static_cast<int>(bins_taken_[next_bin_++]) + 1, bins_);
+      case kStored: break;
+    }
+    return doubles_[next_double_++];
   }
 
-  bool all_read() const { return next_ == symbols_.size() && next_double_ == doubles_.size(); }
+  bool all_read() const {
+    return next_ == nodes_.size() && next_bin_ == bins_taken_.size() && next_double_ == doubles_.size();
+  }
 
  private:
-  const std::vector<uint32_t>& symbols_;
+  const std::vector<uint32_t>& nodes_;
+  const std::vector<uint32_t>& bins_taken_;
   const std::vector<double>& doubles_;
   int bins_;
-  size_t next_ = 0, next_double_ = 0;
-  int candidate_ = -1;
+  size_t next_ = 0, next_bin_ = 0, next_double_ = 0;
+  SplitKind kind_ = kLowEnd;
 };
 
 }  // namespace
@@ -156,8 +182,8 @@ Result<std::vector<uint8_t>> encode_cell_tree(const Scene& cell, const KdTree& t
   SymbolWriter writer(tree, bins);
   auto assembled = KdTree::assemble(cell, tree.bounds(), writer, depth_limit(options, cell.size()),
                                     reference_limit(cell.size()));
-  if (!assembled || writer.consumed() != tree.nodes().size() ||
-      writer.symbols().size() > kMaxNodesPerPrim * cell.size() + 1024 || !same_tree(*assembled, tree)) {
+  if (!assembled || writer.consumed() != tree.nodes().size() || writer.nodes().size() > node_limit(cell.size()) ||
+      !same_tree(*assembled, tree)) {
     return Status::invalid_argument(fmt::format("in-cell tree of {} nodes does not assemble back from its splits{}",
                                                 tree.nodes().size(),
                                                 assembled ? "" : ": " + assembled.status().message()));
@@ -166,8 +192,9 @@ Result<std::vector<uint8_t>> encode_cell_tree(const Scene& cell, const KdTree& t
   GeometryWriter w(out);
   w.u8(kTreeVersion);
   w.varint(static_cast<uint64_t>(bins));
-  w.varint(writer.symbols().size());
-  cell_page::write_values(w, writer.symbols());
+  w.varint(writer.nodes().size());
+  cell_page::write_values(w, writer.nodes());
+  cell_page::write_values(w, writer.bins_taken());
   for (const double d : writer.doubles()) w.f64(d);
   return out;
 }
@@ -184,18 +211,24 @@ Result<KdTree> decode_cell_tree(std::span<const uint8_t> bytes, const Scene& cel
   if (!r.ok() || bins < 2 || bins > kMaxBins || static_cast<int>(bins) != effective_bins(options)) {
     return corrupt("bad bin count", r.offset());
   }
-  const uint64_t nodes = r.varint();
-  if (!r.ok() || nodes == 0 || nodes > kMaxNodesPerPrim * cell.size() + 1024) return corrupt("bad node count", r.offset());
-  std::vector<uint32_t> symbols;
-  const uint32_t max_symbol = escape_symbol(static_cast<int>(bins), 2);
-  if (!cell_page::read_values(r, nodes, max_symbol, symbols)) return corrupt("bad node symbols", r.offset());
-  size_t stored = 0;
-  for (const uint32_t s : symbols) stored += s >= escape_symbol(static_cast<int>(bins), 0) ? 1 : 0;
+  const uint64_t count = r.varint();
+  if (!r.ok() || count > node_limit(cell.size())) return corrupt("bad node count", r.offset());
+  std::vector<uint32_t> nodes, bins_taken;
+  if (!cell_page::read_values(r, count, kMaxNodeSymbol, nodes)) return corrupt("bad node symbols", r.offset());
+  size_t bin_splits = 0, stored = 0;
+  for (const uint32_t s : nodes) {
+    if (s == kLeafSymbol) continue;
+    bin_splits += (s - 1) % 4 == kBin ? 1 : 0;
+    stored += (s - 1) % 4 == kStored ? 1 : 0;
+  }
+  if (!cell_page::read_values(r, bin_splits, static_cast<uint32_t>(bins - 2), bins_taken)) {
+    return corrupt("bad bin splits", r.offset());
+  }
   if (stored > r.remaining() / 8) return corrupt("stored splits run past the end", r.offset());
   std::vector<double> doubles(stored);
   for (double& d : doubles) d = r.f64();
   if (!r.ok() || r.remaining() != 0) return corrupt("trailing bytes", r.offset());
-  SymbolReader reader(symbols, doubles, static_cast<int>(bins));
+  SymbolReader reader(nodes, bins_taken, doubles, static_cast<int>(bins));
   auto tree = KdTree::assemble(cell, region, reader, depth_limit(options, cell.size()), reference_limit(cell.size()));
   if (!tree) return Status::corruption("in-cell tree: " + tree.status().message());
   if (!reader.all_read()) return corrupt("nodes past the end of the tree", bytes.size());

@@ -17,7 +17,9 @@ namespace {
 
 constexpr size_t kNodeBytes = 16;   // f64 split, u32 axis_or_leaf, u32 child
 constexpr size_t kCellBytes = 112;  // 12 f64 bounds/content, u32 references, u32 0, u64 page
-constexpr int kModelVersion = 1;
+// Version 2: cell pages may carry in-cell trees (model section `cell_tree`); a store without them
+// is still written as version 1, which readers that predate trees open.
+constexpr int kModelVersion = 2;
 
 nlohmann::json vec_json(const Vec3& v) { return nlohmann::json::array({v.x, v.y, v.z}); }
 Vec3 json_vec(const nlohmann::json& j) {
@@ -206,7 +208,7 @@ Status read_proxies(const store::StoreReader& reader, const std::vector<KdTree::
 
 std::vector<uint8_t> StoreModelInfo::to_bytes() const {
   nlohmann::json j;
-  j["version"] = kModelVersion;
+  j["version"] = cell_tree ? kModelVersion : 1;
   j["codec"] = std::string(cell_codec_name(codec));
   j["lattice"] = {{"origin", vec_json(lattice.origin)}, {"step", lattice.step}, {"bits", lattice.bits}};
   j["bounds"] = {{"lo", vec_json(bounds.lo)}, {"hi", vec_json(bounds.hi)}};

@@ -111,7 +111,7 @@ Decode decode_all(const std::string& store) {
     d.refine_seconds += refine_s;
     if (!has_tree) continue;
     const auto l = std::chrono::steady_clock::now();
-    const Result<KdTree> stored = decode_cell_tree(tree_bytes, cell, c->bounds, refine);
+    Result<KdTree> stored = decode_cell_tree(tree_bytes, cell, c->bounds, refine);
     d.load_seconds += since(l);
     d.refine_tree_pages_seconds += refine_s;
     d.tree_bytes += tree_bytes.size();
