@@ -1,5 +1,6 @@
 // PagedWorld: grafting paged-in store cells into one tree and one scene (see paged_world.h).
 #include "src/paging/paged_world.h"
+#include "src/paging/paged_world_internal.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -28,17 +29,6 @@ uint64_t charge_of(const Scene& s, const KdTree& t) {
 
 }  // namespace
 
-// Where a grafted cell's pieces live in the world's arrays (each a contiguous range: a graft
-// appends to every array at once, so ranges of later grafts lie after earlier ones).
-struct PagedWorld::Graft {
-  uint32_t cell = 0;                     // store cell
-  uint32_t node0 = 0, nodes = 0;         // tree nodes
-  uint32_t cell0 = 0, cells = 0;         // world cells
-  uint32_t ref0 = 0, refs = 0;           // references (and their bounds)
-  uint32_t prim0 = 0, prims = 0;         // scene.prims
-  std::array<uint32_t, 5> kind0{}, kinds{};  // per PrimKind array ranges
-  uint64_t bytes = 0;
-};
 
 // What one sync() call did so far.
 struct PagedWorld::SyncPass {
@@ -48,17 +38,6 @@ struct PagedWorld::SyncPass {
   std::vector<uint32_t> grafted;
 };
 
-struct PagedWorld::Decoded {
-  uint32_t cell = 0;
-  // Not decoded: the page left the cache between ready() and try_pin(), or the deadline came
-  // before its turn. Wanted again.
-  bool retry = false;
-  bool skipped = false;  // not decoded: it would not fit (hopeless())
-  Status status;
-  Scene scene;
-  KdTree tree;
-  uint64_t bytes = 0;
-};
 
 PagedWorld::PagedWorld(const StoreModel& model, const PagedWorldOptions& options)
     : model_(model), cell_build_(options.cell_build), budget_(options.budget_bytes) {
@@ -98,6 +77,8 @@ PagedWorld::PagedWorld(const StoreModel& model, const PagedWorldOptions& options
   grafted_image_.assign(top_cells_, 0);
   wanted_flag_ = std::make_unique<std::atomic<uint8_t>[]>(top_cells_);
   for (size_t c = 0; c < top_cells_; ++c) wanted_flag_[c].store(0, std::memory_order_relaxed);
+  stand_in_node_.assign(top_cells_, -1);
+  stand_in_detail_.assign(top_cells_, 0);
 
   // The world's arrays never hold more than the decoded share: reserve what each could reach
   // within it once (address space only: untouched pages cost no memory), so that growing never
@@ -114,6 +95,7 @@ PagedWorld::PagedWorld(const StoreModel& model, const PagedWorldOptions& options
   reserve(tree_.ref_bounds_, sizeof(uint32_t) + sizeof(Aabb));
   reserve(scene_.prims, sizeof(PrimRef) + sizeof(Sphere));  // the smallest primitive
   reserve(scene_.triangles, sizeof(PrimRef) + sizeof(Triangle));
+  open_proxies();
 }
 
 PagedWorld::~PagedWorld() = default;
@@ -123,6 +105,10 @@ void PagedWorld::want(int32_t cell) {
   if (c >= top_cells_ || wanted_flag_[c].exchange(1, std::memory_order_acq_rel) != 0) return;
   std::lock_guard<std::mutex> lock(wanted_mutex_);
   wanted_.push_back(static_cast<uint32_t>(c));
+  if (!proxy_.empty()) {
+    request_proxies(static_cast<uint32_t>(c));
+    if (detail_node(static_cast<uint32_t>(c)) >= 0) return;  // a proxy will draw it (sync())
+  }
   cache_->request(model_.cells()[c].page);
 }
 
@@ -169,8 +155,9 @@ bool PagedWorld::unlink_oldest(uint64_t target) {
 bool PagedWorld::evict_for(uint64_t bytes, const std::vector<uint32_t>& keep) {
   const uint64_t budget = lru_.budget();
   if (bytes > budget) return false;
-  if (lru_.bytes() + garbage_bytes_ + bytes <= budget) return true;
-  const uint64_t target = budget - bytes;
+  if (lru_.bytes() + held_besides_cells() + bytes <= budget) return true;
+  if (bytes + proxy_bytes_ > budget) return false;
+  const uint64_t target = budget - bytes - proxy_bytes_;
   if (!unlink_oldest(target)) {
     // Every cell left was touched in this frame: they go too, in ascending order (the LRU's
     // order among cells of one frame), except those grafted by this sync.
@@ -181,7 +168,7 @@ bool PagedWorld::evict_for(uint64_t bytes, const std::vector<uint32_t>& keep) {
     }
   }
   if (lru_.bytes() > target) return false;
-  if (lru_.bytes() + garbage_bytes_ + bytes > budget) compact();
+  if (lru_.bytes() + held_besides_cells() + bytes > budget) compact();
   return true;
 }
 
@@ -206,12 +193,18 @@ std::vector<uint32_t> PagedWorld::take_ready() {
 // when it is known (from an earlier page-in) to fit, the others are dropped undecoded.
 bool PagedWorld::hopeless(uint32_t cell) const {
   const uint64_t size = decoded_size_[cell];
-  return !dropped_.empty() && (size == 0 || lru_.bytes() + garbage_bytes_ + size > lru_.budget());
+  return !dropped_.empty() && (size == 0 || lru_.bytes() + held_besides_cells() + size > lru_.budget());
 }
 
 // Where one decoded (or not decoded) cell goes: grafted, back to the wanted list, failed, or
 // dropped for lack of room.
 void PagedWorld::place(Decoded& d, bool evict, SyncPass& pass) {
+  // The page replaces its stand-in (whether or not it fits: a cell that does not fit is
+  // wanted again from the next frame, and gets a stand-in again then).
+  if (!d.retry && !d.skipped && stand_in_node_[d.cell] >= 0) {
+    unlink_stand_in(d.cell);
+    pass.changed = true;
+  }
   if (d.retry) {
     pass.later.push_back(d.cell);
   } else if (d.skipped) {
@@ -223,7 +216,7 @@ void PagedWorld::place(Decoded& d, bool evict, SyncPass& pass) {
     missing_[d.cell] = 0;
     ++counters_.page_errors;
     pass.changed = true;
-  } else if (lru_.bytes() + garbage_bytes_ + d.bytes <= lru_.budget() ||
+  } else if (lru_.bytes() + held_besides_cells() + d.bytes <= lru_.budget() ||
              (evict && evict_for(d.bytes, pass.grafted))) {
     graft(d);
     pass.grafted.push_back(d.cell);
@@ -244,9 +237,9 @@ void PagedWorld::place(Decoded& d, bool evict, SyncPass& pass) {
 
 bool PagedWorld::sync_impl(std::chrono::steady_clock::time_point deadline, bool evict) {
   const auto start = std::chrono::steady_clock::now();
-  const std::vector<uint32_t> ready = take_ready();
-  if (ready.empty()) return false;
   SyncPass pass;
+  if (!proxy_.empty()) pass.changed = load_proxies(deadline);
+  const std::vector<uint32_t> ready = take_ready();
   const size_t batch = std::max<size_t>(4, 2 * static_cast<size_t>(tbb::info::default_concurrency()));
   for (size_t b = 0; b < ready.size(); b += batch) {
     if (pass.full || std::chrono::steady_clock::now() >= deadline) {
@@ -278,6 +271,8 @@ bool PagedWorld::sync_impl(std::chrono::steady_clock::time_point deadline, bool 
     std::lock_guard<std::mutex> lock(wanted_mutex_);
     wanted_.insert(wanted_.end(), pass.later.begin(), pass.later.end());
   }
+  if (!proxy_.empty() && stand_in_wanted(deadline)) pass.changed = true;
+  if (ready.empty() && !pass.changed) return false;
   counters_.decode_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return pass.changed;
 }
@@ -318,7 +313,12 @@ void PagedWorld::graft(Decoded& d) {
   g.kind0 = {uint32_t(scene_.triangles.size()), uint32_t(scene_.spheres.size()), uint32_t(scene_.boxes.size()),
              uint32_t(scene_.cones.size()), uint32_t(scene_.quadrics.size())};
   g.bytes = d.bytes;
+  g.stand_in = d.stand_in >= 0;
   for (uint32_t i = 0; i < d.scene.size(); ++i) scene_.add_from(d.scene, i);
+  if (g.stand_in || !stand_in_prim_.empty()) {
+    stand_in_prim_.resize(g.prim0, 0);
+    stand_in_prim_.resize(scene_.prims.size(), g.stand_in ? 1 : 0);
+  }
   g.kinds = {uint32_t(scene_.triangles.size()) - g.kind0[0], uint32_t(scene_.spheres.size()) - g.kind0[1],
              uint32_t(scene_.boxes.size()) - g.kind0[2], uint32_t(scene_.cones.size()) - g.kind0[3],
              uint32_t(scene_.quadrics.size()) - g.kind0[4]};
@@ -347,6 +347,13 @@ void PagedWorld::graft(Decoded& d) {
   slot_[d.cell] = static_cast<int32_t>(live_.size());
   live_.push_back(g);
   lru_.insert(d.cell, g.bytes);
+  if (g.stand_in) {
+    stand_in_node_[d.cell] = d.stand_in;
+    stand_in_detail_[d.cell] = d.detail ? 1 : 0;
+    stand_in_cells_.push_back(d.cell);
+    ++counters_.stand_ins;
+    return;
+  }
   decoded_size_[d.cell] = g.bytes;
   if (grafted_image_[d.cell] == image_) ++counters_.cells_reread;
   grafted_image_[d.cell] = image_;
@@ -362,7 +369,8 @@ void PagedWorld::unlink(uint32_t cell) {
   leaf.axis_or_leaf = 3;
   leaf.child = cell;
   missing_[cell] = 1;
-  wanted_flag_[cell].store(0, std::memory_order_release);
+  // A stand-in for a missing cell leaves the cell's page wanted (it is still in wanted_).
+  if (!g.stand_in || stand_in_detail_[cell] != 0) wanted_flag_[cell].store(0, std::memory_order_release);
   // Keep live_ dense: move the last graft into the hole.
   live_[size_t(s)] = live_.back();
   slot_[live_[size_t(s)].cell] = s;
@@ -370,6 +378,11 @@ void PagedWorld::unlink(uint32_t cell) {
   slot_[cell] = -1;
   lru_.erase(cell);
   garbage_bytes_ += g.bytes;
+  if (g.stand_in) {
+    stand_in_node_[cell] = -1;
+    stand_in_detail_[cell] = 0;
+    return;
+  }
   ++counters_.cells_evicted;
 }
 
@@ -423,9 +436,12 @@ void PagedWorld::begin_frame(CellMarks& marks) {
   // Keep a quarter of the decoded share free for the cells this frame pages in: when live
   // cells and garbage fill more than three quarters, unlink the least recently touched down
   // to half and compact. (No cell is touched in the new frame yet: all may go.)
+  if (!proxy_.empty()) review_stand_ins();
   const uint64_t budget = lru_.budget();
-  if (lru_.bytes() + garbage_bytes_ > budget / 4 * 3) unlink_oldest(budget / 2);
-  if (garbage_bytes_ > 0 && lru_.bytes() + garbage_bytes_ > budget / 4 * 3) compact();
+  if (lru_.bytes() + held_besides_cells() > budget / 4 * 3) {
+    unlink_oldest(budget / 2 > proxy_bytes_ ? budget / 2 - proxy_bytes_ : 0);
+  }
+  if (garbage_bytes_ > 0 && lru_.bytes() + held_besides_cells() > budget / 4 * 3) compact();
   marks.resize(tree_.cells_.size());
 }
 
@@ -508,6 +524,7 @@ void PagedWorld::compact() {
       tree_.refs_[r] = static_cast<uint32_t>(int64_t(tree_.refs_[r]) + prim_delta);
     }
     slide(scene_.prims, g.prim0, prim_at, g.prims);
+    if (!stand_in_prim_.empty()) slide(stand_in_prim_, g.prim0, prim_at, g.prims);
     for (uint32_t p = prim_at; p < prim_at + g.prims; ++p) {
       PrimRef& ref = scene_.prims[p];
       ref.index = static_cast<uint32_t>(int64_t(ref.index) + kind_delta[size_t(ref.kind)]);
@@ -539,6 +556,7 @@ void PagedWorld::compact() {
   tree_.refs_.resize(ref_at);
   tree_.ref_bounds_.resize(ref_at);
   scene_.prims.resize(prim_at);
+  if (!stand_in_prim_.empty()) stand_in_prim_.resize(prim_at);
   scene_.triangles.resize(kind_at[0]);
   scene_.spheres.resize(kind_at[1]);
   scene_.boxes.resize(kind_at[2]);

@@ -29,6 +29,22 @@
 // them is its working set (image_cells(), working_set_bytes()), and a cell grafted twice in
 // one image counts as re-read (PagingCounters::cells_reread).
 //
+// Stand-ins (DESIGN.md "proxy at every interior node"; the store's `proxies` section). When the
+// store has proxies, a top cell may be drawn by a STAND-IN instead of its page: the triangles of
+// an ancestor node's proxy that overlap the cell's region, refined and grafted like a page (a hit
+// counts only inside the cell's region, as for every cell). Two reasons, set per frame by
+// set_detail():
+//   detail   the ancestor's error bound projects to less than `pixel_error` pixels at the point
+//            of the ancestor's region nearest the eye: the cell's page is not wanted at all (the
+//            highest such ancestor with a resident proxy draws it);
+//   missing  frames that may show what they have (a time or sample budget, no sync paging):
+//            the cell's page is wanted and on its way, and the deepest resident ancestor proxy
+//            draws it until it arrives (then the page replaces it) — never nothing.
+// The root's proxy is read when the world opens; other proxies are requested (through the page
+// cache) for the ancestors of every wanted cell and decoded in sync(). Decoded proxies and
+// stand-ins are charged to the decoded share like cells. With pixel_error 0 and no missing
+// stand-ins (sync paging, or frames run to completion) nothing stands in: the exact renderer.
+//
 // Threads: missing() and want() are called by render workers while a frame slice runs; every
 // other call is made by the owner between slices (no slice running). I/O runs on the cache's
 // loader thread; decoding and subtree builds run in parallel inside sync().
@@ -39,6 +55,7 @@
 #include "src/engine/kdtree.h"
 #include "src/core/sample_buffer.h"
 #include "src/core/scene.h"
+#include "src/core/view.h"
 #include "src/paging/cell_lru.h"
 #include "src/paging/store_model.h"
 #include "store/page_cache.h"
@@ -67,7 +84,17 @@ struct PagingCounters {
   uint64_t page_errors = 0;     // pages that failed (each at most once)
   uint64_t primitives_paged_in = 0;
   uint64_t cells_reread = 0;    // cells grafted again in the same image (released in between)
+  uint64_t stand_ins = 0;       // stand-ins grafted (see the top of this file)
+  uint64_t proxies_loaded = 0;  // proxy pages decoded
   double decode_ms = 0.0;       // wall time of decode + subtree build + graft in sync()
+};
+
+// What stood in for the cells an image touched (PagedWorld::stand_in_report).
+struct StandInReport {
+  uint64_t proxy_nodes = 0;    // distinct proxy nodes that drew touched cells
+  uint64_t missing_nodes = 0;  // of those, nodes drawing cells whose pages were missing
+  uint64_t detail_cells = 0;   // touched cells drawn by a proxy for detail (pixel error)
+  uint64_t missing_cells = 0;  // touched cells drawn by a proxy while their pages were missing
 };
 
 class PagedWorld final : public CellGate {
@@ -143,6 +170,25 @@ class PagedWorld final : public CellGate {
            failed_[store_cell] == 0;
   }
 
+  // Stand-ins for the next frame (call before begin_frame()): the view, the pixel error below
+  // which a proxy draws a cell instead of its page (0: never), and whether cells whose pages are
+  // missing are drawn by an ancestor's proxy meanwhile. Stand-ins that no longer qualify are
+  // unlinked at begin_frame().
+  void set_detail(const View& view, double pixel_error, bool stand_in_missing);
+  bool has_proxies() const { return !proxy_.empty(); }
+  // World primitive `p` belongs to a stand-in (now or when it was confirmed: unlinked stand-ins'
+  // primitives keep their flag until compact()).
+  bool stand_in_prim(uint32_t p) const { return p < stand_in_prim_.size() && stand_in_prim_[p] != 0; }
+  // Store cell `c` is drawn by a stand-in now.
+  bool stood_in(uint32_t c) const { return stand_in_node_[c] >= 0; }
+  // Stand-ins replaced by their pages (or by a finer proxy) so far: an image that showed
+  // stand-ins is out of date once this grows.
+  uint64_t stand_ins_replaced() const { return stand_ins_replaced_; }
+  // What stood in for the cells in `cells` (store cells, e.g. image_cells()).
+  StandInReport stand_in_report(const std::vector<uint32_t>& cells) const;
+  // Decoded proxies' bytes (within the decoded share).
+  uint64_t proxy_bytes() const { return proxy_bytes_; }
+
   PagingCounters take_counters();
   uint64_t budget_bytes() const { return budget_; }
   uint64_t decoded_bytes() const { return lru_.bytes(); }
@@ -151,7 +197,7 @@ class PagedWorld final : public CellGate {
   uint64_t touched_bytes() const { return touched_bytes_; }
   // Compressed pages held by the cache plus decoded cells: never above budget_bytes() after
   // sync() returns (the cache's own rule: see store/page_cache.h).
-  uint64_t resident_bytes() const { return cache_->resident_bytes() + lru_.bytes(); }
+  uint64_t resident_bytes() const { return cache_->resident_bytes() + lru_.bytes() + proxy_bytes_; }
   uint64_t pinned_bytes() const { return cache_->pinned_bytes(); }
   store::PageCacheStats cache_stats() const { return cache_->stats(); }
   size_t resident_cells() const;
@@ -162,6 +208,7 @@ class PagedWorld final : public CellGate {
   struct Graft;
   struct Decoded;
   struct SyncPass;
+  struct ProxySlot;
   void decode(uint32_t cell, Decoded& out) const;
   bool sync_impl(std::chrono::steady_clock::time_point deadline, bool evict);
   std::vector<uint32_t> take_ready();
@@ -176,6 +223,30 @@ class PagedWorld final : public CellGate {
   void unlink(uint32_t cell);
   void note_touched(const CellMarks& marks);
   void forget_dropped();
+  // Decoded bytes held in the decoded share besides live cells: garbage and proxies.
+  uint64_t held_besides_cells() const { return garbage_bytes_ + proxy_bytes_; }
+
+  // Stand-ins (paged_world_stand_in.cpp).
+  void open_proxies();
+  // Requests the proxy pages of `cell`'s ancestors up to the nearest one resident (wanted_mutex_ held).
+  void request_proxies(uint32_t cell);
+  // The node whose proxy draws `cell` for detail (-1: none qualifies).
+  int32_t detail_node(uint32_t cell) const;
+  // The deepest ancestor of `cell` with a resident proxy (-1: none).
+  int32_t nearest_proxy(uint32_t cell) const;
+  // Pixels node `node`'s error bound spans at the point of its region nearest the eye.
+  double pixels_of(uint32_t node) const;
+  // `node` has a resident proxy whose error stays below the pixel error (node_pixels_).
+  bool detail_ok(int32_t node) const;
+  // Decodes the proxies whose pages arrived; true when one did.
+  bool load_proxies(std::chrono::steady_clock::time_point deadline);
+  void drop_proxies_over_budget();
+  // Cells drawn for detail leave the wanted list with a stand-in; in frames that stand in for
+  // missing cells, the wanted cells still waiting get (or improve) one. True when the tree changed.
+  bool stand_in_wanted(std::chrono::steady_clock::time_point deadline);
+  bool graft_stand_in(uint32_t cell, int32_t node, bool detail);
+  void unlink_stand_in(uint32_t cell);
+  void review_stand_ins();
 
   const StoreModel& model_;
   std::unique_ptr<store::StorePageSource> source_;
@@ -204,6 +275,22 @@ class PagedWorld final : public CellGate {
   std::vector<uint8_t> failed_;          // store cell
   std::vector<uint64_t> decoded_size_;   // store cell -> bytes when last grafted
   uint64_t generation_ = 0;              // compactions so far
+
+  // Stand-ins.
+  std::vector<ProxySlot> proxy_;         // per top node; empty when the store has no proxies
+  std::vector<int32_t> parent_;          // per top node (-1: the root)
+  std::vector<int32_t> stand_in_node_;   // store cell -> node whose proxy draws it, or -1
+  std::vector<uint8_t> stand_in_detail_; // store cell: its stand-in is there for detail
+  std::vector<uint32_t> stand_in_cells_; // store cells with a stand-in (may hold stale entries)
+  std::vector<uint8_t> stand_in_prim_;   // world primitive -> belongs to a stand-in
+  std::vector<uint32_t> proxy_wanted_;   // nodes whose proxy pages were requested, not decoded
+  uint64_t proxy_bytes_ = 0;
+  uint64_t proxy_use_ = 0;               // stamps for proxy LRU
+  uint64_t stand_ins_replaced_ = 0;
+  View detail_view_;
+  std::vector<double> node_pixels_;      // per top node, pixels_of() for detail_view_
+  double pixel_error_ = 0.0;
+  bool stand_in_missing_ = false;
 
   std::unique_ptr<std::atomic<uint8_t>[]> wanted_flag_;  // store cell: in wanted_ already
   mutable std::mutex wanted_mutex_;

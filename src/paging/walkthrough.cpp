@@ -68,7 +68,13 @@ nlohmann::json FrameReport::to_json() const {
                       {"decode_ms", decode_ms},
                       {"reconstruct_ms", reconstruct_ms},
                       {"shading_ops", shading_ops},
-                      {"shadow_rays", shadow_rays}};
+                      {"shadow_rays", shadow_rays},
+                      {"pixel_error", pixel_error},
+                      {"proxy_nodes", proxy_nodes},
+                      {"missing_nodes", missing_nodes},
+                      {"proxy_pixels", proxy_pixels},
+                      {"stand_ins", stand_ins},
+                      {"proxies_loaded", proxies_loaded}};
   j["visibility"] = visibility_name(visibility);
   j["nodes_touched"] = nodes_touched;
   j["primitives_touched"] = primitives_touched;
@@ -130,9 +136,16 @@ Result<std::unique_ptr<Walkthrough>> Walkthrough::open(const std::string& store_
 
 Walkthrough::~Walkthrough() = default;
 
-void Walkthrough::start_image(bool shadows) {
+void Walkthrough::start_image(bool shadows, double pixel_error) {
+  // Missing cells are drawn by proxies only in frames that may end before every page is in.
+  const FrameBudget& budget = options_.budget;
+  const bool stand_in_missing = !options_.sync_paging && (budget.ms > 0.0 || budget.samples > 0);
+  world_->set_detail(view_, pixel_error, stand_in_missing);
   world_->begin_frame(marks_);
   image_shadows_ = shadows;
+  image_pixel_error_ = pixel_error;
+  image_replaced_at_ = world_->stand_ins_replaced();
+  image_proxy_pixels_ = 0;
   caster_->begin(view_, buffer_, marks_, true, shadows);
   image_samples_ = 0;
   passes_ = Passes();
@@ -208,6 +221,8 @@ void Walkthrough::report_paging(FrameReport& r) {
   r.cells_evicted = paging.cells_evicted;
   r.cells_dropped = paging.cells_dropped;
   r.cells_reread = paging.cells_reread;
+  r.stand_ins = paging.stand_ins;
+  r.proxies_loaded = paging.proxies_loaded;
   r.decode_ms = paging.decode_ms;
   r.bytes_read = cache.bytes_read - last_bytes_read_;
   last_bytes_read_ = cache.bytes_read;
@@ -269,6 +284,7 @@ FrameReport Walkthrough::render_frame(const Camera& camera, bool deferred_now) {
   reconstruct_for_display(r);
   r.cells_touched = world_->end_frame(marks_);
   report_image(r, counters);
+  image_proxy_pixels_ = r.proxy_pixels;
   report_paging(r);
   r.frame_ms = ms_since(start);
   if (plan.overtime) r.floor_ms = std::max(0.0, r.frame_ms - options_.budget.ms);
@@ -284,9 +300,16 @@ bool Walkthrough::choose_image(const Camera& camera, bool still, bool deferred_n
   const bool lights = shader_->effects().shadows && options_.shadows;
   if (!still) {
     view_ = View(camera, options_.width, options_.height);
-    start_image(deferred_now && lights);
+    // A still frame is the exact image at once; a moving camera's frames use the pixel error.
+    start_image(deferred_now && lights, deferred_now ? 0.0 : options_.pixel_error);
+  } else if (caster_->complete() && image_proxy_pixels_ > 0 &&
+             (image_pixel_error_ > 0.0 || world_->stand_ins_replaced() != image_replaced_at_)) {
+    // The camera stopped and its image is complete but shows proxies: refine towards the exact
+    // image (pixel error 0, and the pages that replaced stand-ins since).
+    start_image(image_shadows_, 0.0);
   } else if (caster_->complete() && lights && !image_shadows_) {
-    start_image(true);  // the camera stopped and the image is complete: now the deferred effects
+    // The camera stopped and the image is complete: now the deferred effects.
+    start_image(true, image_pixel_error_);
   } else {
     return false;
   }
@@ -435,6 +458,15 @@ void Walkthrough::report_image(FrameReport& r, const Counters& counters) const {
   r.complete = caster_->complete();
   r.shadows = image_shadows_;
   r.parked = caster_->parked() + caster_->held();
+  r.pixel_error = image_pixel_error_;
+  if (world_->has_proxies()) {
+    const StandInReport s = world_->stand_in_report(world_->image_cells(marks_));
+    r.proxy_nodes = s.proxy_nodes;
+    r.missing_nodes = s.missing_nodes;
+    for (size_t i = 0; i < buffer_.size(); ++i) {
+      if (buffer_.confirmed(i) && world_->stand_in_prim(buffer_.prim(i))) ++r.proxy_pixels;
+    }
+  }
 }
 
 const std::vector<Rgb>& Walkthrough::image() {

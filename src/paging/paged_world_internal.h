@@ -1,0 +1,48 @@
+// PagedWorld's private records, shared by paged_world.cpp and paged_world_stand_in.cpp.
+#pragma once
+
+#include "src/paging/paged_world.h"
+
+namespace frontier {
+
+// Where a grafted cell's pieces live in the world's arrays (each a contiguous range: a graft
+// appends to every array at once, so ranges of later grafts lie after earlier ones).
+struct PagedWorld::Graft {
+  uint32_t cell = 0;                     // store cell
+  uint32_t node0 = 0, nodes = 0;         // tree nodes
+  uint32_t cell0 = 0, cells = 0;         // world cells
+  uint32_t ref0 = 0, refs = 0;           // references (and their bounds)
+  uint32_t prim0 = 0, prims = 0;         // scene.prims
+  std::array<uint32_t, 5> kind0{}, kinds{};  // per PrimKind array ranges
+  uint64_t bytes = 0;
+  bool stand_in = false;                 // a proxy's triangles, not the cell's page
+};
+
+struct PagedWorld::Decoded {
+  uint32_t cell = 0;
+  // Not decoded: the page left the cache between ready() and try_pin(), or the deadline came
+  // before its turn. Wanted again.
+  bool retry = false;
+  bool skipped = false;  // not decoded: it would not fit (hopeless())
+  Status status;
+  Scene scene;
+  KdTree tree;
+  uint64_t bytes = 0;
+  int32_t stand_in = -1;  // a stand-in: the node whose proxy it comes from
+  bool detail = false;    // the stand-in is there for detail (no page wanted)
+};
+
+// A top node's proxy as the world holds it: its triangles (source and material kept) and their
+// bounds, so a cell's stand-in takes the ones overlapping its region without testing the rest
+// twice.
+struct PagedWorld::ProxySlot {
+  bool requested = false;
+  bool resident = false;
+  bool failed = false;
+  Scene scene;
+  std::vector<Aabb> bounds;  // per triangle
+  uint64_t bytes = 0;
+  uint64_t used = 0;         // proxy_use_ stamp of the last stand-in made from it
+};
+
+}  // namespace frontier

@@ -1,0 +1,300 @@
+// PagedWorld's stand-ins: proxies of top-tree nodes drawing cells whose pages are missing or
+// not worth their detail (see "Stand-ins" in paged_world.h).
+#include "src/paging/paged_world.h"
+#include "src/paging/paged_world_internal.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace frontier {
+
+
+namespace {
+
+// The decoded share a world's proxies may take at most (least recently used beyond it go first;
+// the root's stays).
+constexpr uint64_t kProxyShareDivisor = 16;
+// Proxies decoded and stand-ins grafted per sync() even past its deadline (progress).
+constexpr size_t kMinStandInWork = 8;
+
+// Distance from `p` to the box (0 inside).
+double distance_to(const Aabb& box, const Vec3& p) {
+  const Vec3 d = glm::max(glm::max(box.lo - p, Vec3(0.0)), p - box.hi);
+  return glm::length(d);
+}
+
+}  // namespace
+
+void PagedWorld::open_proxies() {
+  const auto& proxies = model_.proxies();
+  if (proxies.empty()) return;
+  const auto& nodes = model_.nodes();
+  proxy_.resize(nodes.size());
+  node_pixels_.assign(nodes.size(), kInfinity);
+  parent_.assign(nodes.size(), -1);
+  for (size_t n = 0; n < nodes.size(); ++n) {
+    if (nodes[n].is_leaf()) continue;
+    parent_[n + 1] = static_cast<int32_t>(n);                    // lower child follows its parent
+    parent_[nodes[n].child] = static_cast<int32_t>(n);           // upper child
+  }
+  stand_in_prim_.reserve(scene_.prims.capacity());
+  // The root's proxy is there from the first frame: read now, through the cache.
+  if (model_.proxy(0) != nullptr) {
+    proxy_[0].requested = true;
+    proxy_wanted_.push_back(0);
+    cache_->request(model_.proxy(0)->page);
+    const auto pin = cache_->pin(model_.proxy(0)->page);
+    (void)pin;  // load_proxies() decodes it (it stays in the cache until then)
+    load_proxies(std::chrono::steady_clock::time_point::max());
+  }
+}
+
+double PagedWorld::pixels_of(uint32_t node) const {
+  const StoreProxy* p = model_.proxy(node);
+  if (p == nullptr) return kInfinity;
+  // The point of the node's region nearest the eye; its distance stands for the depth (it is
+  // at least the depth, so this overestimates the pixels: conservative).
+  const double d = distance_to(model_.node_region(node), detail_view_.eye);
+  if (d <= 0.0) return kInfinity;
+  // A length e at distance d spans e * height / (2 d tan(vfov / 2)) pixels.
+  return p->error * double(detail_view_.height) / (2.0 * detail_view_.half_h * d);
+}
+
+bool PagedWorld::detail_ok(int32_t node) const {
+  return node >= 0 && proxy_[size_t(node)].resident && node_pixels_[size_t(node)] < pixel_error_;
+}
+
+int32_t PagedWorld::detail_node(uint32_t cell) const {
+  if (pixel_error_ <= 0.0) return -1;
+  int32_t best = -1;
+  for (int32_t n = parent_[leaf_node_[cell]]; n >= 0; n = parent_[size_t(n)]) {
+    if (detail_ok(n)) best = n;
+  }
+  return best;
+}
+
+int32_t PagedWorld::nearest_proxy(uint32_t cell) const {
+  for (int32_t n = parent_[leaf_node_[cell]]; n >= 0; n = parent_[size_t(n)]) {
+    if (proxy_[size_t(n)].resident) return n;
+  }
+  return -1;
+}
+
+void PagedWorld::request_proxies(uint32_t cell) {
+  // Coarse to fine, one level at a time: the ancestor just below the deepest resident one, unless
+  // a resident ancestor is already fine enough for the pixel error (then nothing finer is read).
+  int32_t below = -1;
+  for (int32_t n = parent_[leaf_node_[cell]]; n >= 0; n = parent_[size_t(n)]) {
+    const ProxySlot& slot = proxy_[size_t(n)];
+    if (slot.resident) {
+      if (pixel_error_ > 0.0 && node_pixels_[size_t(n)] < pixel_error_) return;
+      break;
+    }
+    if (!slot.failed && model_.proxy(uint32_t(n)) != nullptr) below = n;
+  }
+  if (below < 0 || proxy_[size_t(below)].requested) return;
+  proxy_[size_t(below)].requested = true;
+  proxy_wanted_.push_back(uint32_t(below));
+  cache_->request(model_.proxy(uint32_t(below))->page);
+}
+
+bool PagedWorld::load_proxies(std::chrono::steady_clock::time_point deadline) {
+  std::vector<uint32_t> arrived;
+  {
+    std::lock_guard<std::mutex> lock(wanted_mutex_);
+    std::vector<uint32_t> waiting;
+    for (const uint32_t n : proxy_wanted_) {
+      const uint64_t page = model_.proxy(n)->page;
+      (cache_->ready(page) || cache_->failed(page) ? arrived : waiting).push_back(n);
+    }
+    proxy_wanted_.swap(waiting);
+  }
+  bool any = false;
+  for (size_t k = 0; k < arrived.size(); ++k) {
+    const uint32_t n = arrived[k];
+    ProxySlot& slot = proxy_[n];
+    if (k >= kMinStandInWork && std::chrono::steady_clock::now() >= deadline) {
+      std::lock_guard<std::mutex> lock(wanted_mutex_);  // the rest in a later sync()
+      proxy_wanted_.insert(proxy_wanted_.end(), arrived.begin() + std::ptrdiff_t(k), arrived.end());
+      break;
+    }
+    slot.requested = false;
+    const uint64_t page = model_.proxy(n)->page;
+    std::optional<store::Pin> pin = cache_->try_pin(page);
+    if (!pin) {
+      if (cache_->failed(page)) {
+        slot.failed = true;  // drawn by a coarser proxy (or the page) from now on
+      } else {
+        std::lock_guard<std::mutex> lock(wanted_mutex_);
+        slot.requested = true;
+        proxy_wanted_.push_back(n);
+        cache_->request(page);
+      }
+      continue;
+    }
+    Scene scene;
+    const Status s = model_.decode_proxy_page(n, pin->codec(), pin->bytes(), scene);
+    pin->reset();
+    if (!s) {
+      slot.failed = true;
+      ++counters_.page_errors;
+      continue;
+    }
+    slot.scene = std::move(scene);
+    slot.bounds.resize(slot.scene.size());
+    for (uint32_t i = 0; i < slot.scene.size(); ++i) slot.bounds[i] = slot.scene.prim_bounds(i);
+    slot.bytes = slot.scene.triangles.size() * (sizeof(Triangle) + sizeof(PrimRef) + sizeof(Aabb)) +
+                 slot.scene.triangle_normals.size() * sizeof(std::array<Vec3, 3>);
+    slot.resident = true;
+    slot.used = ++proxy_use_;
+    proxy_bytes_ += slot.bytes;
+    ++counters_.proxies_loaded;
+    any = true;
+  }
+  if (any) drop_proxies_over_budget();
+  return any;
+}
+
+void PagedWorld::drop_proxies_over_budget() {
+  const uint64_t cap = std::max<uint64_t>(lru_.budget() / kProxyShareDivisor, 1);
+  while (proxy_bytes_ > cap) {
+    int32_t victim = -1;
+    for (size_t n = 1; n < proxy_.size(); ++n) {
+      if (proxy_[n].resident && (victim < 0 || proxy_[n].used < proxy_[size_t(victim)].used)) victim = int32_t(n);
+    }
+    if (victim < 0) return;
+    ProxySlot& slot = proxy_[size_t(victim)];
+    proxy_bytes_ -= slot.bytes;
+    slot = ProxySlot();  // stand-ins made from it keep their own copies
+  }
+}
+
+bool PagedWorld::graft_stand_in(uint32_t cell, int32_t node, bool detail) {
+  ProxySlot& slot = proxy_[size_t(node)];
+  const Aabb region = model_.cells()[cell].bounds;
+  Decoded d;
+  d.cell = cell;
+  d.stand_in = node;
+  d.detail = detail;
+  d.scene.materials = scene_.materials;
+  for (uint32_t i = 0; i < slot.scene.size(); ++i) {
+    if (slot.bounds[i].overlaps(region)) d.scene.add_from(slot.scene, i);
+  }
+  slot.used = ++proxy_use_;
+  KdBuildOptions options = cell_build_;
+  options.root = region;
+  d.tree = KdTree::build(d.scene, options);
+  // Graft sizes are charged like a page's (see paged_world.cpp), at least one empty cell.
+  d.bytes = d.scene.prims.size() * (sizeof(PrimRef) + sizeof(Triangle)) +
+            d.tree.nodes().size() * sizeof(KdTree::Node) + d.tree.cells().size() * (sizeof(KdTree::Cell) + 56) +
+            d.tree.reference_count() * (sizeof(uint32_t) + sizeof(Aabb));
+  const bool replaced = stand_in_node_[cell] >= 0;
+  if (replaced) unlink_stand_in(cell);
+  if (lru_.bytes() + held_besides_cells() + d.bytes > lru_.budget()) return replaced;
+  graft(d);
+  return true;
+}
+
+void PagedWorld::unlink_stand_in(uint32_t cell) {
+  if (stand_in_node_[cell] < 0) return;
+  unlink(cell);
+  ++stand_ins_replaced_;
+}
+
+bool PagedWorld::stand_in_wanted(std::chrono::steady_clock::time_point deadline) {
+  std::vector<uint32_t> wanted;
+  {
+    std::lock_guard<std::mutex> lock(wanted_mutex_);
+    wanted = wanted_;
+  }
+  bool changed = false;
+  std::vector<uint32_t> detail_done;
+  size_t work = 0;
+  for (const uint32_t c : wanted) {
+    if (slot_[c] >= 0 && stand_in_node_[c] < 0) continue;  // its page is grafted
+    if (work >= kMinStandInWork && std::chrono::steady_clock::now() >= deadline) break;
+    if (stand_in_detail_[c] && detail_ok(stand_in_node_[c])) {
+      detail_done.push_back(c);
+      continue;
+    }
+    const int32_t detail = detail_node(c);
+    if (detail >= 0) {
+      ++work;
+      changed |= graft_stand_in(c, detail, true);
+      if (stand_in_node_[c] == detail) detail_done.push_back(c);
+      continue;
+    }
+    // A missing cell's stand-in is made once (from the finest proxy there is then): its page
+    // is on the way, and rebuilding it for every finer proxy costs more than it shows.
+    if (!stand_in_missing_ || stand_in_node_[c] >= 0) continue;
+    const int32_t nearest = nearest_proxy(c);
+    if (nearest < 0) continue;
+    ++work;
+    changed |= graft_stand_in(c, nearest, false);
+  }
+  if (!detail_done.empty()) {
+    // Drawn for detail: not wanted any more (the flag stays set until the stand-in goes).
+    std::sort(detail_done.begin(), detail_done.end());
+    std::lock_guard<std::mutex> lock(wanted_mutex_);
+    std::erase_if(wanted_, [&](uint32_t c) { return std::binary_search(detail_done.begin(), detail_done.end(), c); });
+  }
+  return changed;
+}
+
+void PagedWorld::set_detail(const View& view, double pixel_error, bool stand_in_missing) {
+  detail_view_ = view;
+  pixel_error_ = proxy_.empty() ? 0.0 : pixel_error;
+  stand_in_missing_ = !proxy_.empty() && stand_in_missing;
+  node_pixels_.assign(proxy_.size(), kInfinity);
+  if (pixel_error_ > 0.0) {
+    for (size_t n = 0; n < proxy_.size(); ++n) node_pixels_[n] = pixels_of(uint32_t(n));
+  }
+}
+
+void PagedWorld::review_stand_ins() {
+  std::vector<uint32_t> kept;
+  std::vector<uint8_t> seen(top_cells_, 0);
+  for (const uint32_t c : stand_in_cells_) {
+    if (stand_in_node_[c] < 0 || seen[c]) continue;
+    seen[c] = 1;
+    // A detail stand-in stays while its proxy is still fine enough from here; one for a missing
+    // cell while frames may show stand-ins and the page is still wanted (its page stays on the
+    // wanted list either way).
+    const bool keep = stand_in_detail_[c] != 0
+                          ? pixel_error_ > 0.0 && detail_ok(stand_in_node_[c])
+                          : stand_in_missing_ && wanted_flag_[c].load(std::memory_order_acquire) != 0;
+    if (keep) {
+      kept.push_back(c);
+    } else {
+      unlink(c);  // missing: the next frame that reaches it wants it (again)
+    }
+  }
+  stand_in_cells_.swap(kept);
+}
+
+StandInReport PagedWorld::stand_in_report(const std::vector<uint32_t>& cells) const {
+  StandInReport r;
+  std::vector<int32_t> nodes, missing_nodes;
+  for (const uint32_t c : cells) {
+    const int32_t n = stand_in_node_[c];
+    if (n < 0) continue;
+    nodes.push_back(n);
+    if (stand_in_detail_[c]) {
+      ++r.detail_cells;
+    } else {
+      ++r.missing_cells;
+      missing_nodes.push_back(n);
+    }
+  }
+  auto distinct = [](std::vector<int32_t>& v) {
+    std::sort(v.begin(), v.end());
+    return uint64_t(std::unique(v.begin(), v.end()) - v.begin());
+  };
+  r.proxy_nodes = distinct(nodes);
+  r.missing_nodes = distinct(missing_nodes);
+  return r;
+}
+
+}  // namespace frontier
