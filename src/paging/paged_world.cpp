@@ -298,7 +298,7 @@ double PagedWorld::wait_for_pages(std::chrono::steady_clock::time_point deadline
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
-void PagedWorld::graft(Decoded& d) {
+PagedWorld::Graft PagedWorld::append(const Decoded& d, const std::array<int32_t, 6>& ropes, uint32_t owner) {
   const KdTree& sub = d.tree;
   Graft g;
   g.cell = d.cell;
@@ -323,7 +323,6 @@ void PagedWorld::graft(Decoded& d) {
              uint32_t(scene_.boxes.size()) - g.kind0[2], uint32_t(scene_.cones.size()) - g.kind0[3],
              uint32_t(scene_.quadrics.size()) - g.kind0[4]};
 
-  const KdTree::Cell placeholder = tree_.cells_[d.cell];
   for (KdTree::Node n : sub.nodes_) {
     n.child += n.is_leaf() ? g.cell0 : g.node0;
     tree_.nodes_.push_back(n);
@@ -331,14 +330,21 @@ void PagedWorld::graft(Decoded& d) {
   for (KdTree::Cell c : sub.cells_) {
     c.first += g.ref0;
     for (int f = 0; f < 6; ++f) {
-      c.rope[f] = c.rope[f] == KdTree::kNone ? placeholder.rope[f] : c.rope[f] + static_cast<int32_t>(g.node0);
+      c.rope[f] = c.rope[f] == KdTree::kNone ? ropes[size_t(f)] : c.rope[f] + static_cast<int32_t>(g.node0);
     }
     tree_.cells_.push_back(c);
-    owner_.push_back(d.cell);
+    owner_.push_back(owner);
   }
   for (uint32_t r : sub.refs_) tree_.refs_.push_back(r + g.prim0);
   tree_.ref_bounds_.insert(tree_.ref_bounds_.end(), sub.ref_bounds_.begin(), sub.ref_bounds_.end());
   tree_.depth_ = std::max<uint32_t>(tree_.depth_, model_.depth() + sub.depth_);
+  return g;
+}
+
+void PagedWorld::graft(Decoded& d) {
+  std::array<int32_t, 6> ropes;
+  for (int f = 0; f < 6; ++f) ropes[size_t(f)] = tree_.cells_[d.cell].rope[f];
+  const Graft g = append(d, ropes, d.cell);
 
   KdTree::Node& leaf = tree_.nodes_[leaf_node_[d.cell]];
   leaf.axis_or_leaf = 4;
@@ -347,13 +353,6 @@ void PagedWorld::graft(Decoded& d) {
   slot_[d.cell] = static_cast<int32_t>(live_.size());
   live_.push_back(g);
   lru_.insert(d.cell, g.bytes);
-  if (g.stand_in) {
-    stand_in_node_[d.cell] = d.stand_in;
-    stand_in_detail_[d.cell] = d.detail ? 1 : 0;
-    stand_in_cells_.push_back(d.cell);
-    ++counters_.stand_ins;
-    return;
-  }
   decoded_size_[d.cell] = g.bytes;
   if (grafted_image_[d.cell] == image_) ++counters_.cells_reread;
   grafted_image_[d.cell] = image_;
@@ -361,35 +360,37 @@ void PagedWorld::graft(Decoded& d) {
   counters_.primitives_paged_in += g.prims;
 }
 
+// Keeps live_ dense: moves the last graft into slot s; its arrays become garbage.
+void PagedWorld::remove_graft(int32_t s) {
+  garbage_bytes_ += live_[size_t(s)].bytes;
+  live_[size_t(s)] = live_.back();
+  const Graft& moved = live_[size_t(s)];
+  if (moved.stand_in) {
+    proxy_[moved.cell].graft = s;
+  } else {
+    slot_[moved.cell] = s;
+  }
+  live_.pop_back();
+}
+
 void PagedWorld::unlink(uint32_t cell) {
   const int32_t s = slot_[cell];
   if (s < 0) return;
-  const Graft g = live_[size_t(s)];
   KdTree::Node& leaf = tree_.nodes_[leaf_node_[cell]];
   leaf.axis_or_leaf = 3;
   leaf.child = cell;
   missing_[cell] = 1;
-  // A stand-in for a missing cell leaves the cell's page wanted (it is still in wanted_).
-  if (!g.stand_in || stand_in_detail_[cell] != 0) wanted_flag_[cell].store(0, std::memory_order_release);
-  // Keep live_ dense: move the last graft into the hole.
-  live_[size_t(s)] = live_.back();
-  slot_[live_[size_t(s)].cell] = s;
-  live_.pop_back();
+  wanted_flag_[cell].store(0, std::memory_order_release);
+  remove_graft(s);
   slot_[cell] = -1;
   lru_.erase(cell);
-  garbage_bytes_ += g.bytes;
-  if (g.stand_in) {
-    stand_in_node_[cell] = -1;
-    stand_in_detail_[cell] = 0;
-    return;
-  }
   ++counters_.cells_evicted;
 }
 
 void PagedWorld::note_touched(const CellMarks& marks) {
   const size_t n = std::min(marks.size(), owner_.size());
   for (size_t c = 0; c < n; ++c) {
-    if (marks.marked(static_cast<int32_t>(c))) lru_.touch(owner_[c]);
+    if (marks.marked(static_cast<int32_t>(c)) && owner_[c] < top_cells_) lru_.touch(owner_[c]);
   }
 }
 
@@ -406,7 +407,7 @@ std::vector<uint32_t> PagedWorld::image_cells(const CellMarks& marks) const {
   for (const uint32_t s : lru_.touched_cells()) add(s);
   const size_t n = std::min(marks.size(), owner_.size());
   for (size_t c = 0; c < n; ++c) {
-    if (marks.marked(static_cast<int32_t>(c))) add(owner_[c]);
+    if (marks.marked(static_cast<int32_t>(c)) && owner_[c] < top_cells_) add(owner_[c]);
   }
   std::sort(out.begin(), out.end());
   return out;
@@ -449,7 +450,7 @@ bool PagedWorld::reclaim_untouched(CellMarks& marks) {
   note_touched(marks);
   std::vector<uint32_t> stale;
   for (const Graft& g : live_) {
-    if (!lru_.touched(g.cell)) stale.push_back(g.cell);
+    if (!g.stand_in && !lru_.touched(g.cell)) stale.push_back(g.cell);
   }
   if (stale.empty() && garbage_bytes_ == 0) return false;
   for (const uint32_t c : stale) unlink(c);
@@ -469,6 +470,7 @@ uint64_t PagedWorld::release_pass(CellMarks& marks) {
     earlier_cells_.push_back(c);
   }
   lru_.begin_frame();
+  if (!proxy_.empty()) release_proxy_grafts();
   while (!live_.empty()) unlink(live_.back().cell);
   compact();
   forget_dropped();
@@ -538,7 +540,11 @@ void PagedWorld::compact() {
       // Normals are either absent or one per triangle: they move with the triangles.
       slide(scene_.triangle_normals, g.kind0[0], kind_at[0], g.kinds[0]);
     }
-    tree_.nodes_[leaf_node_[g.cell]].child = node_at;
+    if (g.stand_in) {
+      for (const uint32_t c : proxy_[g.cell].linked) tree_.nodes_[leaf_node_[c]].child = node_at;
+    } else {
+      tree_.nodes_[leaf_node_[g.cell]].child = node_at;
+    }
     g.node0 = node_at;
     g.cell0 = cell_at;
     g.ref0 = ref_at;
@@ -567,7 +573,9 @@ void PagedWorld::compact() {
   ++generation_;
 }
 
-size_t PagedWorld::resident_cells() const { return live_.size(); }
+size_t PagedWorld::resident_cells() const {
+  return size_t(std::count_if(live_.begin(), live_.end(), [](const Graft& g) { return !g.stand_in; }));
+}
 
 PagingCounters PagedWorld::take_counters() {
   PagingCounters c = counters_;

@@ -128,7 +128,9 @@ class PagedWorld final : public CellGate {
   bool sync_evicting();
   uint64_t generation() const { return generation_; }
   // Records that the current frame used store cell `c` (LRU), for renderers without CellMarks.
-  void touch(uint32_t store_cell) { lru_.touch(store_cell); }
+  void touch(uint32_t store_cell) {
+    if (store_cell < top_cells_) lru_.touch(store_cell);
+  }
   // Bytes store cell c took decoded and refined when it was last paged in (0: never was).
   uint64_t decoded_size(uint32_t store_cell) const { return decoded_size_[store_cell]; }
   // Store cells touched (or paged in) since the last begin_frame().
@@ -161,7 +163,8 @@ class PagedWorld final : public CellGate {
   // The smallest budget_bytes whose decoded share holds `decoded_bytes` (the inverse of the
   // split between compressed pages and decoded cells), rounded up to a MiB.
   static uint64_t budget_for(uint64_t decoded_bytes);
-  // The store cell a world cell belongs to.
+  // The store cell a world cell belongs to (kNoOwner: a proxy's subtree).
+  static constexpr uint32_t kNoOwner = UINT32_MAX;
   uint32_t store_cell(int32_t world_cell) const { return owner_[size_t(world_cell)]; }
   bool resident(uint32_t store_cell) const { return slot_[store_cell] >= 0; }
   // Asked for (by want()) and not grafted, failed or dropped since.
@@ -220,6 +223,10 @@ class PagedWorld final : public CellGate {
   // are live. False when the cells left (all touched in this frame) still take more.
   bool unlink_oldest(uint64_t target);
   void graft(Decoded& d);
+  // Appends a decoded subtree to the world's arrays; its faces on the root's boundary get
+  // `ropes`, its world cells the owner `owner`.
+  Graft append(const Decoded& d, const std::array<int32_t, 6>& ropes, uint32_t owner);
+  void remove_graft(int32_t slot);
   void unlink(uint32_t cell);
   void note_touched(const CellMarks& marks);
   void forget_dropped();
@@ -245,6 +252,13 @@ class PagedWorld final : public CellGate {
   // missing cells, the wanted cells still waiting get (or improve) one. True when the tree changed.
   bool stand_in_wanted(std::chrono::steady_clock::time_point deadline);
   bool graft_stand_in(uint32_t cell, int32_t node, bool detail);
+  // Grafts node `node`'s proxy as a subtree over its region (once); false when it does not fit.
+  bool graft_proxy(uint32_t node);
+  std::array<int32_t, 6> node_ropes(uint32_t node) const;
+  void drop_proxy(uint32_t node);
+  // Unlinks the cells drawn by node's proxy and removes its subtree (the decoded proxy stays).
+  void release_proxy_graft(uint32_t node);
+  void release_proxy_grafts();
   void unlink_stand_in(uint32_t cell);
   void review_stand_ins();
 

@@ -15,7 +15,7 @@ struct PagedWorld::Graft {
   uint32_t prim0 = 0, prims = 0;         // scene.prims
   std::array<uint32_t, 5> kind0{}, kinds{};  // per PrimKind array ranges
   uint64_t bytes = 0;
-  bool stand_in = false;                 // a proxy's triangles, not the cell's page
+  bool stand_in = false;                 // a proxy's subtree: `cell` is then the top node
 };
 
 struct PagedWorld::Decoded {
@@ -28,8 +28,7 @@ struct PagedWorld::Decoded {
   Scene scene;
   KdTree tree;
   uint64_t bytes = 0;
-  int32_t stand_in = -1;  // a stand-in: the node whose proxy it comes from
-  bool detail = false;    // the stand-in is there for detail (no page wanted)
+  int32_t stand_in = -1;  // a proxy subtree: the node whose proxy it is
 };
 
 // A top node's proxy as the world holds it: its triangles (source and material kept) and their
@@ -43,6 +42,8 @@ struct PagedWorld::ProxySlot {
   std::vector<Aabb> bounds;  // per triangle
   uint64_t bytes = 0;
   uint64_t used = 0;         // proxy_use_ stamp of the last stand-in made from it
+  int32_t graft = -1;        // its subtree's index in live_ once a cell links to it (-1: none)
+  std::vector<uint32_t> linked;  // store cells whose top leaves link to that subtree
 };
 
 }  // namespace frontier

@@ -16,7 +16,7 @@ namespace {
 // The decoded share a world's proxies may take at most (least recently used beyond it go first;
 // the root's stays).
 constexpr uint64_t kProxyShareDivisor = 16;
-// Proxies decoded and stand-ins grafted per sync() even past its deadline (progress).
+// Proxies decoded per sync() even past its deadline (progress).
 constexpr size_t kMinStandInWork = 8;
 
 // Distance from `p` to the box (0 inside).
@@ -165,42 +165,109 @@ void PagedWorld::drop_proxies_over_budget() {
       if (proxy_[n].resident && (victim < 0 || proxy_[n].used < proxy_[size_t(victim)].used)) victim = int32_t(n);
     }
     if (victim < 0) return;
-    ProxySlot& slot = proxy_[size_t(victim)];
-    proxy_bytes_ -= slot.bytes;
-    slot = ProxySlot();  // stand-ins made from it keep their own copies
+    drop_proxy(uint32_t(victim));  // its cells are missing again
   }
+}
+
+std::array<int32_t, 6> PagedWorld::node_ropes(uint32_t node) const {
+  // As the top tree's builder assigns them (kdtree.cpp assign_ropes), from the root down: a
+  // child's face on its parent's split plane leads to its sibling, the others to the parent's.
+  std::vector<uint32_t> path;
+  for (int32_t n = int32_t(node); n >= 0; n = parent_[size_t(n)]) path.push_back(uint32_t(n));
+  std::array<int32_t, 6> ropes;
+  ropes.fill(KdTree::kNone);
+  const auto& nodes = model_.nodes();
+  for (size_t k = path.size() - 1; k > 0; --k) {
+    const uint32_t n = path[k], child = path[k - 1];
+    const int a = static_cast<int>(nodes[n].axis_or_leaf);
+    if (child == n + 1) {
+      ropes[size_t(2 * a + 1)] = static_cast<int32_t>(nodes[n].child);  // lower child: upper face
+    } else {
+      ropes[size_t(2 * a)] = static_cast<int32_t>(n + 1);               // upper child: lower face
+    }
+  }
+  return ropes;
+}
+
+bool PagedWorld::graft_proxy(uint32_t node) {
+  ProxySlot& slot = proxy_[node];
+  if (slot.graft >= 0) return true;
+  Decoded d;
+  d.cell = node;
+  d.stand_in = int32_t(node);
+  d.scene = slot.scene;
+  KdBuildOptions options = cell_build_;
+  options.root = model_.node_region(node);
+  d.tree = KdTree::build(d.scene, options);
+  d.bytes = d.scene.prims.size() * (sizeof(PrimRef) + sizeof(Triangle)) +
+            d.tree.nodes().size() * sizeof(KdTree::Node) + d.tree.cells().size() * (sizeof(KdTree::Cell) + 56) +
+            d.tree.reference_count() * (sizeof(uint32_t) + sizeof(Aabb));
+  if (lru_.bytes() + held_besides_cells() + d.bytes > lru_.budget()) return false;
+  const Graft g = append(d, node_ropes(node), kNoOwner);
+  slot.graft = static_cast<int32_t>(live_.size());
+  live_.push_back(g);
+  slot.bytes += g.bytes;
+  proxy_bytes_ += g.bytes;
+  return true;
 }
 
 bool PagedWorld::graft_stand_in(uint32_t cell, int32_t node, bool detail) {
   ProxySlot& slot = proxy_[size_t(node)];
-  const Aabb region = model_.cells()[cell].bounds;
-  Decoded d;
-  d.cell = cell;
-  d.stand_in = node;
-  d.detail = detail;
-  d.scene.materials = scene_.materials;
-  for (uint32_t i = 0; i < slot.scene.size(); ++i) {
-    if (slot.bounds[i].overlaps(region)) d.scene.add_from(slot.scene, i);
-  }
+  if (stand_in_node_[cell] >= 0) unlink_stand_in(cell);
+  if (!graft_proxy(uint32_t(node))) return false;
+  // The cell's top leaf links to the proxy's subtree, which covers the whole node's region: a ray
+  // entering the cell goes on through the proxy until it leaves the node.
+  KdTree::Node& leaf = tree_.nodes_[leaf_node_[cell]];
+  leaf.axis_or_leaf = 4;
+  leaf.child = live_[size_t(slot.graft)].node0;
+  missing_[cell] = 0;
+  stand_in_node_[cell] = node;
+  stand_in_detail_[cell] = detail ? 1 : 0;
+  stand_in_cells_.push_back(cell);
+  slot.linked.push_back(cell);
   slot.used = ++proxy_use_;
-  KdBuildOptions options = cell_build_;
-  options.root = region;
-  d.tree = KdTree::build(d.scene, options);
-  // Graft sizes are charged like a page's (see paged_world.cpp), at least one empty cell.
-  d.bytes = d.scene.prims.size() * (sizeof(PrimRef) + sizeof(Triangle)) +
-            d.tree.nodes().size() * sizeof(KdTree::Node) + d.tree.cells().size() * (sizeof(KdTree::Cell) + 56) +
-            d.tree.reference_count() * (sizeof(uint32_t) + sizeof(Aabb));
-  const bool replaced = stand_in_node_[cell] >= 0;
-  if (replaced) unlink_stand_in(cell);
-  if (lru_.bytes() + held_besides_cells() + d.bytes > lru_.budget()) return replaced;
-  graft(d);
+  ++counters_.stand_ins;
   return true;
 }
 
 void PagedWorld::unlink_stand_in(uint32_t cell) {
-  if (stand_in_node_[cell] < 0) return;
-  unlink(cell);
+  const int32_t node = stand_in_node_[cell];
+  if (node < 0) return;
+  KdTree::Node& leaf = tree_.nodes_[leaf_node_[cell]];
+  leaf.axis_or_leaf = 3;
+  leaf.child = cell;
+  missing_[cell] = 1;
+  // A cell drawn for detail was taken off the wanted list: it may be wanted again. One drawn
+  // while missing is still on it.
+  if (stand_in_detail_[cell]) wanted_flag_[cell].store(0, std::memory_order_release);
+  stand_in_node_[cell] = -1;
+  stand_in_detail_[cell] = 0;
+  std::vector<uint32_t>& linked = proxy_[size_t(node)].linked;
+  linked.erase(std::find(linked.begin(), linked.end(), cell));
   ++stand_ins_replaced_;
+}
+
+void PagedWorld::release_proxy_graft(uint32_t node) {
+  ProxySlot& slot = proxy_[node];
+  while (!slot.linked.empty()) unlink_stand_in(slot.linked.back());
+  if (slot.graft < 0) return;
+  const uint64_t bytes = live_[size_t(slot.graft)].bytes;
+  remove_graft(slot.graft);
+  slot.graft = -1;
+  slot.bytes -= bytes;
+  proxy_bytes_ -= bytes;
+}
+
+void PagedWorld::release_proxy_grafts() {
+  for (size_t n = 0; n < proxy_.size(); ++n) {
+    if (proxy_[n].graft >= 0 || !proxy_[n].linked.empty()) release_proxy_graft(uint32_t(n));
+  }
+}
+
+void PagedWorld::drop_proxy(uint32_t node) {
+  release_proxy_graft(node);
+  proxy_bytes_ -= proxy_[node].bytes;
+  proxy_[node] = ProxySlot();
 }
 
 bool PagedWorld::stand_in_wanted(std::chrono::steady_clock::time_point deadline) {
@@ -211,27 +278,22 @@ bool PagedWorld::stand_in_wanted(std::chrono::steady_clock::time_point deadline)
   }
   bool changed = false;
   std::vector<uint32_t> detail_done;
-  size_t work = 0;
   for (const uint32_t c : wanted) {
-    if (slot_[c] >= 0 && stand_in_node_[c] < 0) continue;  // its page is grafted
-    if (work >= kMinStandInWork && std::chrono::steady_clock::now() >= deadline) break;
+    if (slot_[c] >= 0) continue;  // its page is grafted
     if (stand_in_detail_[c] && detail_ok(stand_in_node_[c])) {
       detail_done.push_back(c);
       continue;
     }
     const int32_t detail = detail_node(c);
     if (detail >= 0) {
-      ++work;
       changed |= graft_stand_in(c, detail, true);
       if (stand_in_node_[c] == detail) detail_done.push_back(c);
       continue;
     }
-    // A missing cell's stand-in is made once (from the finest proxy there is then): its page
-    // is on the way, and rebuilding it for every finer proxy costs more than it shows.
-    if (!stand_in_missing_ || stand_in_node_[c] >= 0) continue;
+    // A missing cell is drawn by the finest proxy there is until its page arrives.
+    if (!stand_in_missing_) continue;
     const int32_t nearest = nearest_proxy(c);
-    if (nearest < 0) continue;
-    ++work;
+    if (nearest < 0 || nearest == stand_in_node_[c]) continue;
     changed |= graft_stand_in(c, nearest, false);
   }
   if (!detail_done.empty()) {
@@ -268,7 +330,7 @@ void PagedWorld::review_stand_ins() {
     if (keep) {
       kept.push_back(c);
     } else {
-      unlink(c);  // missing: the next frame that reaches it wants it (again)
+      unlink_stand_in(c);  // missing: the next frame that reaches it wants it (again)
     }
   }
   stand_in_cells_.swap(kept);
