@@ -298,11 +298,16 @@ void add_path_command(CLI::App& app, PathCommand& p) {
   p.cmd->add_option("--seed", p.options.seed, "random seed");
   p.cmd->add_option("--step", p.options.step, "walk: metres per frame")->check(CLI::Range(1e-4, 100.0));
   p.cmd->add_option("--vfov", p.options.vfov_deg, "vertical field of view, degrees")->check(CLI::Range(1.0, 170.0));
+  p.cmd->add_option("--clearance", p.options.clearance,
+                    "fly: metres kept between the eye and the highest geometry within that distance of it "
+                    "(default: 1% of the model's larger horizontal side)")
+      ->check(CLI::Range(1e-6, 1e9));
   p.cmd->add_option("-o,--output", p.output, "output .cam file ('-' for stdout)")->required();
 }
 
 // The cameras of the path: a walk through the rooms of a building sidecar, or an orbit or fly
-// around the bounds (from the sidecar when there is one, else scanned from the model).
+// around the bounds (from the sidecar when there is one, else scanned from the model); a fly
+// reads the model once more for the ground it keeps clear of.
 Result<std::vector<Camera>> path_cameras(const PathCommand& p) {
   const std::string side = p.sidecar.empty() ? default_sidecar(p.model) : p.sidecar;
   if (p.kind == "walk") {
@@ -319,7 +324,10 @@ Result<std::vector<Camera>> path_cameras(const PathCommand& p) {
   else
     bounds = scan_model_bounds(p.model);
   if (!bounds) return bounds.status();
-  return p.kind == "orbit" ? orbit_path(*bounds, p.options) : fly_path(*bounds, p.options);
+  if (p.kind == "orbit") return orbit_path(*bounds, p.options);
+  auto ground = scan_ground(p.model, *bounds);
+  if (!ground) return ground.status();
+  return fly_path(*bounds, *ground, p.options);
 }
 
 int run_path(const PathCommand& p, const std::string& invocation) {

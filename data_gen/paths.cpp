@@ -10,8 +10,10 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <deque>
 #include <fstream>
 #include <numbers>
+#include <numeric>
 
 namespace frontier::gen {
 namespace {
@@ -128,6 +130,76 @@ class Polyline {
  private:
   std::vector<Vec3> points_;
   std::vector<double> length_;
+};
+
+// Circular running maximum of v over 2 * half + 1 samples.
+std::vector<double> running_max(const std::vector<double>& v, size_t half) {
+  const size_t m = v.size();
+  if (2 * half + 1 >= m) return std::vector<double>(m, *std::max_element(v.begin(), v.end()));
+  std::vector<double> out(m);
+  std::deque<size_t> window;  // positions in [0, m + 2 half), values decreasing
+  auto value = [&](size_t j) { return v[(j + m - half) % m]; };  // position j is sample j - half
+  size_t next = 0;
+  for (size_t k = 0; k < m; ++k) {
+    for (; next <= k + 2 * half; ++next) {
+      while (!window.empty() && value(window.back()) <= value(next)) window.pop_back();
+      window.push_back(next);
+    }
+    while (window.front() < k) window.pop_front();
+    out[k] = value(window.front());
+  }
+  return out;
+}
+
+// Circular running mean of v over 2 * half + 1 samples.
+std::vector<double> running_mean(const std::vector<double>& v, size_t half) {
+  const size_t m = v.size();
+  if (2 * half + 1 >= m) return std::vector<double>(m, std::accumulate(v.begin(), v.end(), 0.0) / double(m));
+  std::vector<double> prefix(m + 2 * half + 1, 0.0);  // prefix[j]: sum of positions < j
+  for (size_t j = 0; j < m + 2 * half; ++j) prefix[j + 1] = prefix[j] + v[(j + m - half) % m];
+  std::vector<double> out(m);
+  for (size_t k = 0; k < m; ++k) out[k] = (prefix[k + 2 * half + 1] - prefix[k]) / double(2 * half + 1);
+  return out;
+}
+
+// How far the fly path's eye rises over a closed curve so that it keeps `clearance` above the
+// ground, sampled every `step` of arc length and interpolated linearly between samples.
+//
+// Why it holds between samples: a sample asks for the highest ground within clearance + step/2
+// of it and adds step/2 (the curve's height changes by at most its arc length), so it covers
+// every point within step/2 of it. A running maximum over +-(2h + 1) samples followed by two
+// running means over +-h leaves every sample at least the largest need of itself and its two
+// neighbours, so the linear interpolation between two samples is at least both their needs.
+class GroundLift {
+ public:
+  static constexpr size_t kMaxSamples = 1 << 16;
+
+  GroundLift(const Polyline& curve, const GroundMap& ground, double clearance) : length_(curve.length()) {
+    const size_t m = std::clamp<size_t>(static_cast<size_t>(std::ceil(length_ / (0.25 * clearance))), 8, kMaxSamples);
+    step_ = length_ / double(m);
+    const GroundMap reach = ground.widened(clearance + 0.5 * step_);
+    std::vector<double> need(m);
+    for (size_t k = 0; k < m; ++k) {
+      const Vec3 p = curve.at(double(k) * step_);
+      const double g = reach.highest_near(p.x, p.y, 0.0);
+      need[k] = std::isfinite(g) ? std::max(0.0, g + clearance + 0.5 * step_ - p.z) : 0.0;
+    }
+    // Smoothing over about 1% of the loop: climbs start before a rise instead of at it.
+    const size_t half = std::max<size_t>(1, static_cast<size_t>(std::ceil(0.01 * length_ / step_)));
+    lift_ = running_mean(running_mean(running_max(need, 2 * half + 1), half), half);
+  }
+  size_t samples() const { return lift_.size(); }
+  // The lift at arc length s in [0, length).
+  double at(double s) const {
+    const double u = std::clamp(s / step_, 0.0, double(lift_.size()));
+    const size_t k = std::min(static_cast<size_t>(u), lift_.size() - 1);
+    const double t = u - double(k);
+    return (1.0 - t) * lift_[k] + t * lift_[(k + 1) % lift_.size()];
+  }
+
+ private:
+  double length_ = 0.0, step_ = 1.0;
+  std::vector<double> lift_;
 };
 
 struct Waypoint {
@@ -296,7 +368,13 @@ Result<std::vector<Camera>> orbit_path(const Aabb& b, const PathOptions& o) {
   return frames;
 }
 
-Result<std::vector<Camera>> fly_path(const Aabb& b, const PathOptions& o) {
+double default_clearance(const Aabb& b) {
+  const Vec3 e = b.extent();
+  const double side = std::max(e.x, e.y);
+  return 0.01 * (side > 0.0 ? side : glm::length(e));
+}
+
+Result<std::vector<Camera>> fly_path(const Aabb& b, const GroundMap& ground, const PathOptions& o) {
   if (b.empty() || !(glm::length(b.extent()) > 0.0))
     return Status::invalid_argument("--kind fly: the model has empty bounds");
   Rng rng(o.seed, Stream::Path, 3);
@@ -332,10 +410,31 @@ Result<std::vector<Camera>> fly_path(const Aabb& b, const PathOptions& o) {
   }
   curve.push(ctrl[0]);
   const double L = curve.length();
+  const double clearance = o.clearance > 0.0 ? o.clearance : default_clearance(b);
+  const GroundLift lift(curve, ground, clearance);
+  auto lifted = [&](double s) { return curve.at(s) + Vec3(0.0, 0.0, lift.at(s)); };
+  // Frames are evenly spaced along the lifted loop (a climb does not speed the eye up): its
+  // arc length tabulated over the curve's parameter, then inverted. Every eye is still a point
+  // lifted(s), so the lift's guarantee holds for it.
+  const size_t fine = 4 * (lift.samples() + curve.size());
+  std::vector<double> arc(fine + 1, 0.0);
+  Vec3 prev = lifted(0.0);
+  for (size_t j = 1; j <= fine; ++j) {
+    const Vec3 p = lifted(std::min(L * double(j) / double(fine), std::nextafter(L, 0.0)));
+    arc[j] = arc[j - 1] + glm::length(p - prev);
+    prev = p;
+  }
+  const double C = arc.back();
+  auto at_length = [&](double along) {
+    along = std::fmod(along, C);
+    const size_t j = std::min<size_t>(fine - 1, static_cast<size_t>(std::upper_bound(arc.begin(), arc.end(), along) - arc.begin()) - 1);
+    const double piece = arc[j + 1] - arc[j], t = piece > 0.0 ? (along - arc[j]) / piece : 0.0;
+    return lifted(L * (double(j) + t) / double(fine));
+  };
   std::vector<Camera> frames;
   for (int i = 0; i < o.frames; ++i) {
-    const double s = L * i / o.frames, ahead = std::fmod(s + 0.02 * L, L);
-    frames.push_back(make_camera(curve.at(s), curve.at(ahead), o.vfov_deg));
+    const double along = C * i / o.frames;
+    frames.push_back(make_camera(at_length(along), at_length(along + 0.02 * C), o.vfov_deg));
   }
   return frames;
 }

@@ -7,9 +7,14 @@
 //          the ones the generator keeps clear of furniture, so the path stays in free space.
 //   orbit  a circle around the model's bounds centre, 25 degrees above it, looking at it.
 //   fly    a smooth closed spline through seeded points of the bounding box above the model's
-//          mid-height, looking ahead.
+//          mid-height, looking ahead, lifted where it would come closer than the clearance to
+//          the ground (data_gen/ground.h). Guarantee: every eye is at least `clearance` above
+//          the highest geometry within `clearance` horizontally of it; the lift is widened and
+//          smoothed along the path (a running maximum, then two running means) so the eye
+//          climbs before a rise and does not jitter.
 #pragma once
 
+#include "data_gen/ground.h"
 #include "src/core/geometry.h"
 #include "src/core/scene.h"
 #include "src/core/status.h"
@@ -51,10 +56,16 @@ struct PathOptions {
   uint64_t seed = 1;
   double step = 0.05;   // walk: metres per frame
   double vfov_deg = 60.0;
+  double clearance = 0.0;  // fly: metres above the ground; 0: default_clearance(bounds)
 };
+
+// The fly path's default clearance: 1% of the bounds' larger horizontal side (of the diagonal
+// when the bounds are flat in x and y).
+double default_clearance(const Aabb& bounds);
 
 Result<std::vector<Camera>> walk_path(const WalkModel& model, const PathOptions& options);
 Result<std::vector<Camera>> orbit_path(const Aabb& bounds, const PathOptions& options);
-Result<std::vector<Camera>> fly_path(const Aabb& bounds, const PathOptions& options);
+// `ground` covers the model (scan_ground over `bounds`).
+Result<std::vector<Camera>> fly_path(const Aabb& bounds, const GroundMap& ground, const PathOptions& options);
 
 }  // namespace frontier::gen

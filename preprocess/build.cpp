@@ -345,7 +345,7 @@ class StoreBuilder {
       binary = binary && (*reader)->binary();
     }
     reparse_ = options_.reparse_binary_ply && binary;
-    const bool draco = options_.codec == CellCodec::Draco;
+    const bool draco = cell_codec_on_lattice(options_.codec);  // Draco or meshopt
     uint64_t needed = reparse_ ? 0 : primitives * kSpillBytesPerExactPrimitive;
     if (primitives > capacity()) {  // parts, straddlers included
       needed += primitives * 6 / 5 * (draco ? kSpillBytesPerLatticeTriangle : kSpillBytesPerExactPrimitive);
@@ -420,10 +420,10 @@ class StoreBuilder {
       spilled(root.bytes);
     }
     if (bounds_.empty()) bounds_ = Aabb(Vec3(-1.0), Vec3(1.0));  // an empty model still makes a store
-    if (options_.codec == CellCodec::Draco) lattice_ = Lattice::covering(bounds_, options_.quant_bits);
+    if (cell_codec_on_lattice(options_.codec)) lattice_ = Lattice::covering(bounds_, options_.quant_bits);
     proxy_options_.target_triangles = options_.proxy_triangles;
-    if (options_.codec == CellCodec::Draco) proxy_options_.lattice = lattice_;
-    const double slack = options_.codec == CellCodec::Draco ? lattice_.step : 0.0;
+    if (cell_codec_on_lattice(options_.codec)) proxy_options_.lattice = lattice_;
+    const double slack = cell_codec_on_lattice(options_.codec) ? lattice_.step : 0.0;
     root.region = KdTree::root_bounds(bounds_, slack);
     root_region_ = root.region;
     root.count = reparse_ ? report_.primitives : out.records();
@@ -704,13 +704,13 @@ class StoreBuilder {
 
   // The lattice a part's spill file stores positions on: the store's, once snapped to it.
   std::optional<Lattice> spill_lattice(const Part& part) const {
-    return part.snapped && options_.codec == CellCodec::Draco ? std::optional<Lattice>(lattice_) : std::nullopt;
+    return part.snapped && cell_codec_on_lattice(options_.codec) ? std::optional<Lattice>(lattice_) : std::nullopt;
   }
 
-  // Snaps triangles to the lattice (Draco) and drops those that lose their area; spheres and
+  // Snaps triangles to the lattice (Draco, meshopt) and drops those that lose their area; spheres and
   // other shapes are stored exactly.
   void snap(Scene& batch) {
-    if (options_.codec != CellCodec::Draco || batch.triangles.empty()) return;
+    if (!cell_codec_on_lattice(options_.codec) || batch.triangles.empty()) return;
     Scene kept;
     kept.triangle_normals.reserve(batch.triangle_normals.size());
     for (uint32_t i = 0; i < batch.size(); ++i) {

@@ -55,7 +55,10 @@
 namespace frontier {
 
 // --proxy-triangles' default (README "Proxies": measured on the terrain and the building).
-inline constexpr uint32_t kDefaultProxyTriangles = 256;
+// 0 (no proxies) until frontier-view draws them: they cost build time (README "Proxies").
+inline constexpr uint32_t kDefaultProxyTriangles = 0;
+// What a build with proxies should ask for (measured: README "Proxies").
+inline constexpr uint32_t kSuggestedProxyTriangles = 128;
 
 struct BuildOptions {
   std::vector<std::string> inputs;

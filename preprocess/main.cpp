@@ -49,15 +49,17 @@ int main(int argc, char** argv) {
                  "directory for the build's temporary files (default: beside the output); leftovers of "
                  "killed builds there are removed");
   app.add_option("--memory", memory, "memory budget for the build, e.g. 512M, 1G (default 1G); peak RSS stays within it + 64 MiB");
-  app.add_option("--codec", codec, "cell page codec: draco (default) or raw (exact doubles)")
-      ->check(CLI::IsMember({"draco", "raw"}));
-  app.add_option("--quant-bits", options.quant_bits, "bits per axis of the global position lattice (Draco), 8..30")
+  app.add_option("--codec", codec, "cell page codec: draco (default; smallest), meshopt (meshoptimizer's vertex and "
+                 "index codecs: larger pages, several times faster decoding) or raw (exact doubles)")
+      ->check(CLI::IsMember({"draco", "meshopt", "raw"}));
+  app.add_option("--quant-bits", options.quant_bits, "bits per axis of the global position lattice (draco, meshopt), 8..30")
       ->default_val(16);
   app.add_option("--cell-prims", options.cell_prims, "at most this many primitives per cell page")->default_val(1024);
   app.add_option("--proxy-triangles", options.proxy_triangles,
                  "triangles of the proxy page every interior node of the store's top tree gets: a coarse "
                  "stand-in for its whole subtree (meshoptimizer, borders locked; at most twice this where "
-                 "borders stop it) with a measured object-space error bound; 0: no proxies")
+                 "borders stop it) with a measured object-space error bound; 0: no proxies (the default until "
+                 "frontier-view draws them; 128 is the measured choice)")
       ->default_val(frontier::kDefaultProxyTriangles);
   app.add_option("--threads", options.threads, "threads that build and encode parts (0: all cores); reading and "
                  "partitioning use a reader thread besides")->default_val(0);
@@ -91,7 +93,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   options.memory = *bytes;
-  options.codec = codec == "raw" ? frontier::CellCodec::Raw : frontier::CellCodec::Draco;
+  options.codec = *frontier::cell_codec_named(codec);
   if (!no_walkable) {
     for (const std::string& in : options.inputs) options.walkable = options.walkable || sidecar_says_walkable(in);
   }

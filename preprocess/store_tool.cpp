@@ -88,8 +88,8 @@ int info(const std::string& path) {
                      static_cast<double>(in.references) / static_cast<double>(std::max<uint64_t>(in.primitives, 1)));
   out += fmt::format("cells       {} ({} empty, {} pages), depth {}, --cell-prims {}, largest {}\n",
                      model.cells().size(), empty, model.cells().size() - empty, model.depth(), in.cell_prims, largest);
-  out += fmt::format("codec       {}\n", in.codec == frontier::CellCodec::Draco ? "draco" : "raw");
-  if (in.codec == frontier::CellCodec::Draco) {
+  out += fmt::format("codec       {}\n", frontier::cell_codec_name(in.codec));
+  if (frontier::cell_codec_on_lattice(in.codec)) {
     out += fmt::format("lattice     {} bits, step {:.9g} (max error {:.3g} per axis), origin {}\n", in.lattice.bits,
                        in.lattice.step, in.lattice.max_error(), vec(in.lattice.origin));
   }

@@ -584,7 +584,7 @@ TEST(BuildStore, WalkableAddsADistanceGrid) {
   EXPECT_EQ(bricks.size(), (*grid)->counters().bricks);
   EXPECT_GE(bricks.size(), 2u);
   EXPECT_EQ(report->sdf_bricks, bricks.size());
-  EXPECT_EQ((*model)->reader().page_count(), report->pages + bricks.size());
+  EXPECT_EQ((*model)->reader().page_count(), report->pages + bricks.size() + report->proxy_pages);
   // A flipped byte in a brick page: verify names the page; the grid reads that brick as solid.
   const store::Handle h = (*model)->reader().page_handle(bricks[1]);
   const store::Handle* handle = &h;

@@ -33,7 +33,7 @@ std::string terrain(uint64_t triangles) {
 // One build with `memory` as its budget; returns its peak RSS in bytes (0 when it failed).
 uint64_t peak_rss_of_build(const std::string& in, const std::string& memory, uint64_t budget) {
   const fs::path out = scratch() / "memory.frontier";
-  const auto r = run_binary(FRONTIER_BUILD_PATH, {in, "-o", out.string(), "--memory", memory, "--threads", "2"},
+  const auto r = run_binary(FRONTIER_BUILD_PATH, {in, "-o", out.string(), "--memory", memory, "--threads", "2", "--proxy-triangles", "128"},
                             scratch());
   EXPECT_EQ(r.exit_code, 0) << r.err;
   const uint64_t peak = static_cast<uint64_t>(r.max_rss_kb) * 1024;

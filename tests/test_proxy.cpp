@@ -291,7 +291,7 @@ TEST(Proxy, DegenerateInputGivesFiniteBounds) {
   ball.add_sphere({Vec3(3, 4, 5), 2.0}, 0, 0);
   const ProxyMesh b = proxy_input(ball, options);
   EXPECT_GT(b.error, 0.0);
-  EXPECT_LT(b.error, 0.2 * 2.0);
+  EXPECT_LT(b.error, 0.3 * 2.0);  // proxies tessellate with 6 segments: a quarter of the radius
   std::vector<Triangle> tris = proxy_scene(b).triangles;
   std::mt19937 rng(3);
   std::normal_distribution<double> g;

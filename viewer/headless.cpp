@@ -13,7 +13,6 @@
 #include <sys/resource.h>
 
 #include <algorithm>
-#include <filesystem>
 #include <fstream>
 
 namespace frontier {
@@ -41,16 +40,17 @@ Result<std::vector<Camera>> walk_path(const ViewerOptions& o, const Camera& star
   return cams;
 }
 
-// --report opened for writing and --png-dir created, when asked for.
+// --report opened for writing and --png-dir and --ids-dir created, when asked for.
 Status open_outputs(const ViewerOptions& o, std::ofstream& report) {
   if (!o.report_path.empty()) {
     report.open(o.report_path);
     if (!report) return Status::io_error(o.report_path + ": cannot write");
   }
   if (!o.png_dir.empty()) {
-    std::error_code ec;
-    std::filesystem::create_directories(o.png_dir, ec);
-    if (ec) return Status::io_error(o.png_dir + ": " + ec.message());
+    if (Status s = make_output_dir("--png-dir", o.png_dir); !s) return s;
+  }
+  if (!o.ids_dir.empty()) {
+    if (Status s = make_output_dir("--ids-dir", o.ids_dir); !s) return s;
   }
   return Status::ok();
 }
@@ -186,6 +186,11 @@ int store_frame(const ViewerOptions& o, Walkthrough& walk, const Camera& camera)
   WalkTotals totals;
   totals.add(r);
   print_thrashing(o, totals, walk);
+  if (!o.ids_dir.empty()) {
+    // The still frame is frame 0 of a walk of one camera.
+    if (Status s = make_output_dir("--ids-dir", o.ids_dir); !s) return fail(s);
+    if (Status s = write_ids(frame_file(o.ids_dir, 0, "ids"), walk.ids()); !s) return fail(s);
+  }
   return write_last_frame(o, walk, r);
 }
 
@@ -211,8 +216,11 @@ int walk_headless(const ViewerOptions& o, Walkthrough& walk, const Camera& start
     totals.add(r);
     if (report.is_open()) report << r.to_json().dump() << "\n";
     if (!o.png_dir.empty() && (f % png_every == 0 || f + 1 == frames)) {
-      const std::string file = fmt::format("{}/frame_{:05d}.png", o.png_dir, f);
+      const std::string file = frame_file(o.png_dir, f, "png");
       if (Status s = write_png(file, walk.view().width, walk.view().height, walk.image()); !s) return fail(s);
+    }
+    if (!o.ids_dir.empty()) {
+      if (Status s = write_ids(frame_file(o.ids_dir, f, "ids"), walk.ids()); !s) return fail(s);
     }
   }
   if (report.is_open()) {

@@ -3,7 +3,7 @@
 //   frontier-view STORE [--cache 512M] [--size WxH] [--threads N] [--frame-ms MS | --samples N]
 //       a window (GLFW) walking through a store, paging cells in as the view reaches them;
 //   frontier-view STORE --headless --path PATH.cam --report frames.jsonl [--frames N]
-//       [--png-dir DIR] [--oracle] [--sync-paging] [--walk]
+//       [--png-dir DIR] [--ids-dir DIR] [--oracle] [--sync-paging] [--walk]
 //       the same walk along a camera path without a window, one JSON line per frame and a summary;
 //   frontier-view STORE --headless [--png F] [--ids F] [--stats F]
 //       one complete frame of a store from its camera (paged, waiting for pages);
@@ -61,8 +61,8 @@ bool is_store(const std::string& path) {
 
 // A model file (or a store with --in-memory): one headless frame; the walk options need a store.
 int run_model(const ViewerOptions& o, bool store) {
-  if (!o.path_file.empty() || !o.report_path.empty() || o.walk || o.oracle) {
-    return bad_option("--path, --report, --walk and --oracle need a store (frontier-build) and no --in-memory");
+  if (!o.path_file.empty() || !o.report_path.empty() || !o.ids_dir.empty() || o.walk || o.oracle) {
+    return bad_option("--path, --report, --ids-dir, --walk and --oracle need a store (frontier-build) and no --in-memory");
   }
   if (!o.headless) return bad_option("a model file is rendered headless: add --headless (or build a store)");
   return render_model(o, store);
@@ -115,6 +115,11 @@ int run_interactive(const ViewerOptions& o, Walkthrough& walk, FrameBudget budge
     win.path = std::move(*cams);
   }
   win.screenshot = o.png_path;
+  if (!o.ids_dir.empty()) {
+    if (win.path.empty()) return bad_option("--ids-dir in the window needs --path (the frames it replays)");
+    if (Status s = make_output_dir("--ids-dir", o.ids_dir); !s) return fail(s);
+    win.ids_dir = o.ids_dir;
+  }
   win.budget = budget;
   win.start_walking = o.walk;
   WalkMode mode;

@@ -44,6 +44,10 @@ void add_store_options(CLI::App& app, ViewerOptions& o) {
       ->check(CLI::NonNegativeNumber);
   app.add_option("--report", o.report_path, "store: write one JSON object per frame, then a summary line");
   app.add_option("--png-dir", o.png_dir, "store, headless: write some frames as PNG into DIR");
+  app.add_option("--ids-dir", o.ids_dir,
+                 "store, along --path (headless, or the window replaying it): write every frame's ids as "
+                 "DIR/frame_NNNNN.ids (the --ids layout, numbered like --png-dir from 00000); DIR is created, and "
+                 "one that cannot be created or written is an error (exit 1)");
   app.add_option("--png-every", o.png_every, "with --png-dir: every Nth frame (default: frames/4) and the last")
       ->check(CLI::PositiveNumber);
   app.add_flag("--oracle", o.oracle, "store: count oracle_cells, the cells exact per-pixel rays pass before their first hit");

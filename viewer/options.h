@@ -31,7 +31,7 @@ struct ViewerOptions {
   // Stores.
   std::string cache_text = "512M", collision_cache_text = "64M";
   uint64_t collision_cache = CollisionGrid::kDefaultBudget;  // --collision-cache parsed (stores only)
-  std::string path_file, report_path, png_dir;
+  std::string path_file, report_path, png_dir, ids_dir;
   int frames = 0, png_every = 0;
   bool oracle = false, sync_paging = false, walk = false, in_memory = false;
   double pixel_error = -1.0;  // --pixel-error; negative: not given (1, or 0 with --sync-paging)

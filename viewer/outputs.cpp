@@ -3,7 +3,10 @@
 
 #include "src/io/image.h"
 
+#include <fmt/core.h>
+
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 
 namespace frontier {
@@ -22,6 +25,19 @@ Status write_json(const std::string& path, const nlohmann::json& j) {
   std::ofstream out(path);
   out << j.dump(2) << "\n";
   return out ? Status::ok() : Status::io_error(path + ": cannot write");
+}
+
+std::string frame_file(const std::string& dir, size_t frame, const char* ext) {
+  return fmt::format("{}/frame_{:05d}.{}", dir, frame, ext);
+}
+
+Status make_output_dir(const std::string& option, const std::string& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) return Status::io_error(fmt::format("{} {}: cannot create the directory: {}", option, dir, ec.message()));
+  if (!std::filesystem::is_directory(dir, ec))
+    return Status::io_error(fmt::format("{} {}: exists and is not a directory", option, dir));
+  return Status::ok();
 }
 
 int write_frame_files(const ViewerOptions& o, int width, int height, const Frame& frame) {

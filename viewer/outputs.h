@@ -1,6 +1,6 @@
 // What frontier-view writes, shared by its modes: the message and exit code of a failure
-// (1: bad input, naming the file and line or page; 2: bad options), JSON files, and one frame's
-// --png, --ids and --stats files.
+// (1: bad input, naming the file and line or page; 2: bad options), JSON files, one frame's
+// --png, --ids and --stats files, and the per-frame files' names and directories.
 #pragma once
 
 #include "src/core/status.h"
@@ -20,6 +20,12 @@ int bad_option(const std::string& message);
 
 // Writes `j` (indented) to `path`: the --stats and --bsp-stats files.
 Status write_json(const std::string& path, const nlohmann::json& j);
+
+// DIR/frame_NNNNN.EXT, the name of frame `frame` (from 0) in --png-dir and --ids-dir.
+std::string frame_file(const std::string& dir, size_t frame, const char* ext);
+// Creates the output directory `dir` of `option` (--png-dir, --ids-dir) with its parents.
+// IoError naming the option and the directory when it cannot be created or is not a directory.
+Status make_output_dir(const std::string& option, const std::string& dir);
 
 // Writes the files the options ask for: --png (frame.colors), --ids (frame.ids), --stats
 // (frame.stats), in that order. Returns 0, or fail()'s code for the first that cannot be written.

@@ -13,6 +13,7 @@
 #include "viewer/window.h"
 
 #include "src/io/image.h"
+#include "viewer/outputs.h"
 #include "viewer/window_session.h"
 
 #include <GLFW/glfw3.h>
@@ -135,6 +136,12 @@ int WindowSession::run() {
     history_.push(last_);
     if (peg_samples_ == 0) peg_samples_ = std::max<uint64_t>(1000, walk_.view().pixels() / 4);
     if (report.is_open()) report << last_.to_json().dump() << "\n";
+    if (!options_.ids_dir.empty()) {
+      if (Status s = write_ids(frame_file(options_.ids_dir, size_t(shown), "ids"), walk_.ids()); !s) {
+        std::fprintf(stderr, "frontier-view: %s\n", s.to_string().c_str());
+        return 1;
+      }
+    }
 
     if (!shown_) show_window_for(walk_.view().width, walk_.view().height);
     upload_image();

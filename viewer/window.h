@@ -19,6 +19,7 @@ struct WindowOptions {
   std::vector<Camera> path;           // non-empty: replay this path (one camera per frame) instead of input
   std::string screenshot;             // non-empty: write the last displayed frame as PNG here on exit
   std::string report;                 // non-empty: write one JSON line per frame (FrameReport) here
+  std::string ids_dir;                // non-empty (with a path): write each frame's ids as DIR/frame_NNNNN.ids
   double speed = 1.0;                 // metres per second at start (mouse wheel / +,- change it)
   bool walk_available = false;        // the store declares walk mode (Walker given)
   bool start_walking = false;         // start in walk mode (needs a Walker); F toggles

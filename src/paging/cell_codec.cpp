@@ -14,7 +14,8 @@ namespace {
 using cell_page::CellCodecImpl;
 
 // Every codec this build knows. Adding one: its CellCodecImpl here.
-constexpr std::array<const CellCodecImpl*, 2> kCodecs = {&cell_page::kRawCodec, &cell_page::kDracoCodec};
+constexpr std::array<const CellCodecImpl*, 3> kCodecs = {&cell_page::kRawCodec, &cell_page::kDracoCodec,
+                                                          &cell_page::kMeshoptCodec};
 
 const CellCodecImpl* find_codec(uint8_t tag) {
   for (const CellCodecImpl* codec : kCodecs) {
@@ -69,6 +70,8 @@ std::optional<CellCodec> cell_codec_named(std::string_view name) {
   }
   return std::nullopt;
 }
+
+bool cell_codec_on_lattice(CellCodec codec) { return codec == CellCodec::Draco || codec == CellCodec::Meshopt; }
 
 Result<EncodedCell> encode_cell(const Scene& cell, const CellCodecOptions& options) {
   if (Status s = check_scene(cell); !s) return s;

@@ -2,8 +2,9 @@
 // cell_codec.h). Each codec is one .cpp that defines one CellCodecImpl; cell_codec.cpp checks
 // the scene, then dispatches on the tag through its table of them. Adding a codec: its tag in
 // CellCodec, its file, its declaration below and its entry in cell_codec.cpp's table. The shared
-// payload parts a codec may use are the value streams (value_stream.h) and the raw body of
-// non-triangle primitives (raw_body.h).
+// payload parts a codec may use are the value streams (value_stream.h), the raw body of
+// non-triangle primitives (raw_body.h) and, for codecs on the lattice, the split of a cell into
+// lattice triangles and the rest (lattice_cell.h).
 #pragma once
 
 #include "src/paging/cell_codec.h"
@@ -28,7 +29,8 @@ struct CellCodecImpl {
 };
 
 extern const CellCodecImpl kRawCodec;    // raw_codec.cpp
-extern const CellCodecImpl kDracoCodec;  // draco_codec.cpp
+extern const CellCodecImpl kDracoCodec;    // draco_codec.cpp
+extern const CellCodecImpl kMeshoptCodec;  // meshopt_codec.cpp
 
 // How every codec reports damage: Corruption "CODEC cell page: WHAT (at byte OFFSET)".
 inline Status corrupt(std::string_view codec, size_t offset, std::string_view what) {

@@ -4,7 +4,8 @@
 // lattice offsets from a per-cell base; per-triangle sources and materials are stored beside
 // it in the order in which Draco decodes the faces, found at encode time by decoding the mesh
 // again and matching faces by their lattice coordinates. Every other primitive goes into a raw
-// body (raw_body.h) after them.
+// body (raw_body.h) after them. The split into lattice triangles and the rest, the lattice base
+// and the source/material streams are shared with the meshopt codec (lattice_cell.h).
 //
 // Decoding trusts nothing: the header's counts are checked against the bytes left, the Draco
 // stream's own counts against the header before Draco sees them, and everything Draco hands
@@ -12,8 +13,8 @@
 #include "src/paging/cell_codec_impl.h"
 #include "src/paging/dense_ids.h"
 #include "src/paging/draco_stream.h"
+#include "src/paging/lattice_cell.h"
 #include "src/paging/raw_body.h"
-#include "src/paging/value_stream.h"
 
 #include <algorithm>
 #include <array>
@@ -28,44 +29,21 @@ namespace {
 constexpr uint8_t kDracoMagic = 0xD1;  // Draco codec, layout version 1
 constexpr uint8_t kDracoHasNormals = 1;  // header flag
 // Per axis: Draco's entropy coder sizes a histogram by the largest prediction correction, which
-// can reach the cell's extent in lattice steps (see find_base).
+// can reach the cell's extent in lattice steps (see check_span).
 constexpr int64_t kMaxCellSteps = int64_t{1} << 24;
 constexpr std::string_view kCodec = "Draco";
 
-// Lattice indices fit in 32 bits (bits <= 30): the key of a vertex.
-using VertexKey = std::array<int32_t, 3>;
 // A Draco point: a vertex id and the bit pattern of its float normal.
 using PointKey = std::array<uint32_t, 4>;
 // A face's vertex ids rotated to start at the smallest, keeping the cyclic order: equal for
 // the same oriented face whatever corner Draco starts it at, different for the flipped one.
 using FaceKey = std::array<uint32_t, 3>;
 
-VertexKey vertex_key(const LatticeIndex& q) {
-  return {static_cast<int32_t>(q[0]), static_cast<int32_t>(q[1]), static_cast<int32_t>(q[2])};
-}
-
 FaceKey face_key(uint32_t a, uint32_t b, uint32_t c) {
   if (b < a && b < c) return {b, c, a};
   if (c < a && c < b) return {c, a, b};
   return {a, b, c};
 }
-
-// One triangle of the cell on the lattice: its distinct-vertex ids and what the page keeps
-// beside it.
-struct Face {
-  std::array<uint32_t, 3> vertex;
-  uint32_t triangle, source, material;
-};
-
-// A cell as the Draco codec splits it: the triangles on the lattice, in primitive order, as
-// distinct-vertex ids from the cell's base; everything else goes to the raw body.
-struct DracoCell {
-  explicit DracoCell(size_t triangles) : vertex_ids(triangles) { faces.reserve(triangles); }
-  std::vector<Face> faces;
-  DenseIds<VertexKey> vertex_ids;  // absolute lattice indices
-  Scene others;
-  LatticeIndex base{0, 0, 0};  // the smallest index on each axis
-};
 
 // The fields of a Draco payload, in order (the raw body follows).
 struct DracoPage {
@@ -91,66 +69,23 @@ Status check_options(const CellCodecOptions& options, bool normals) {
   return Status::ok();
 }
 
-Status split_cell(const Scene& cell, const Lattice& lattice, DracoCell& out) {
-  for (size_t i = 0; i < cell.prims.size(); ++i) {
-    const PrimRef& p = cell.prims[i];
-    switch (p.kind) {
-      case PrimKind::Sphere: out.others.add_sphere(cell.spheres[p.index], p.source, p.material); continue;
-      case PrimKind::Box: out.others.add_box(cell.boxes[p.index], p.source, p.material); continue;
-      case PrimKind::Cone: out.others.add_cone(cell.cones[p.index], p.source, p.material); continue;
-      case PrimKind::Quadric: out.others.add_quadric(cell.quadrics[p.index], p.source, p.material); continue;
-      case PrimKind::Triangle: break;
-    }
-    const Triangle& t = cell.triangles[p.index];
-    const Vec3* v[3] = {&t.v0, &t.v1, &t.v2};
-    LatticeIndex q[3];
-    for (int c = 0; c < 3; ++c) {
-      q[c] = lattice.quantize(*v[c]);
-      if (lattice.point(q[c]) != *v[c]) {
-        return Status::invalid_argument(fmt::format(
-            "encode_cell: primitive {} (triangle {}, source {}) vertex {} ({}, {}, {}) is not on the lattice", i,
-            p.index, p.source, c, v[c]->x, v[c]->y, v[c]->z));
-      }
-    }
-    // Draco cannot hold a face with a repeated vertex: such triangles (zero area on the
-    // lattice) are dropped here, and `decoded` shows it.
-    if (q[0] == q[1] || q[1] == q[2] || q[0] == q[2]) continue;
-    out.faces.push_back({{out.vertex_ids.insert(vertex_key(q[0])), out.vertex_ids.insert(vertex_key(q[1])),
-                          out.vertex_ids.insert(vertex_key(q[2]))},
-                         p.index, p.source, p.material});
-  }
-  return Status::ok();
-}
-
-// Sets cell.base. Draco's entropy coder sizes a histogram by the largest prediction correction,
-// which can reach the cell's extent in lattice steps: measured 74 MB and 0.1 M triangles/s at
-// 2^24 steps, 4 GB at 2^30. Refuse before that rather than exhaust memory.
-Status find_base(DracoCell& cell) {
-  const std::vector<VertexKey>& vertices = cell.vertex_ids.keys();
-  LatticeIndex base{0, 0, 0}, top{0, 0, 0};
-  if (!vertices.empty()) {
-    base = {INT64_MAX, INT64_MAX, INT64_MAX};
-    for (const VertexKey& q : vertices) {
-      for (int a = 0; a < 3; ++a) {
-        base[a] = std::min<int64_t>(base[a], q[a]);
-        top[a] = std::max<int64_t>(top[a], q[a]);
-      }
-    }
-  }
+// Draco's entropy coder sizes a histogram by the largest prediction correction, which can reach
+// the cell's extent in lattice steps: measured 74 MB and 0.1 M triangles/s at 2^24 steps, 4 GB
+// at 2^30. Refuse before that rather than exhaust memory.
+Status check_span(const LatticeCell& cell) {
   for (int a = 0; a < 3; ++a) {
-    if (top[a] - base[a] >= kMaxCellSteps) {
+    if (cell.span[a] >= kMaxCellSteps) {
       return Status::invalid_argument(fmt::format(
           "encode_cell: the cell spans {} lattice steps on axis {}; the Draco codec takes at most 2^24 "
-          "(use fewer lattice bits or smaller cells)", top[a] - base[a], a));
+          "(use fewer lattice bits or smaller cells)", cell.span[a], a));
     }
   }
-  cell.base = base;
   return Status::ok();
 }
 
 // The mesh Draco encodes: positions relative to the base; with normals, one Draco point per
 // distinct (vertex, float normal), otherwise one per vertex.
-DracoInput draco_input(const DracoCell& cell, const Scene& scene, bool normals) {
+DracoInput draco_input(const LatticeCell& cell, const Scene& scene, bool normals) {
   DracoInput in;
   in.normals = normals;
   const std::vector<VertexKey>& vertices = cell.vertex_ids.keys();
@@ -183,7 +118,7 @@ DracoInput draco_input(const DracoCell& cell, const Scene& scene, bool normals) 
 // same oriented vertices (page.sources, page.materials). Input faces are grouped by key (equal
 // faces in input order); each decoded face takes the next unused input face of its key, so the
 // k-th copy of a face pairs with the k-th (equal faces are interchangeable).
-Status pair_faces(const DracoCell& cell, const DracoMesh& decoded, DracoPage& page) {
+Status pair_faces(const LatticeCell& cell, const DracoMesh& decoded, DracoPage& page) {
   // Draco may decode more points than it was given (it splits non-manifold vertices).
   std::vector<uint32_t> point_vertex(page.points);
   for (size_t p = 0; p < page.points; ++p) {
@@ -194,7 +129,7 @@ Status pair_faces(const DracoCell& cell, const DracoMesh& decoded, DracoPage& pa
       return Status::invalid_argument("encode_cell: Draco round trip invented a vertex");
     }
   }
-  const std::vector<Face>& faces = cell.faces;
+  const std::vector<LatticeFace>& faces = cell.faces;
   DenseIds<FaceKey> face_ids(faces.size());
   std::vector<uint32_t> face_class(faces.size());
   for (uint32_t f = 0; f < faces.size(); ++f) {
@@ -216,7 +151,7 @@ Status pair_faces(const DracoCell& cell, const DracoMesh& decoded, DracoPage& pa
     if (c == DenseIds<FaceKey>::kNone || next[c] == first[c + 1]) {
       return Status::invalid_argument("encode_cell: Draco changed the cell's faces (a face was lost, added or flipped)");
     }
-    const Face& in = faces[members[next[c]++]];
+    const LatticeFace& in = faces[members[next[c]++]];
     page.sources[f] = in.source;
     page.materials[f] = in.material;
   }
@@ -225,7 +160,7 @@ Status pair_faces(const DracoCell& cell, const DracoMesh& decoded, DracoPage& pa
 
 // Decodes the stream just encoded to learn Draco's face order (page.points, sources and
 // materials); `decoded_blob` keeps Draco's decode for the final check of the whole page.
-Status round_trip(const DracoCell& cell, bool normals, DracoPage& page, std::unique_ptr<draco::Mesh>& decoded_blob) {
+Status round_trip(const LatticeCell& cell, bool normals, DracoPage& page, std::unique_ptr<draco::Mesh>& decoded_blob) {
   auto draco_mesh = run_draco_decoder(page.blob);
   if (!draco_mesh) {
     return Status::invalid_argument(
@@ -246,14 +181,12 @@ void write_payload(const DracoPage& page, const Scene& others, std::vector<uint8
   GeometryWriter w(out);
   w.u8(kDracoMagic);
   w.u8(page.normals ? kDracoHasNormals : 0);
-  w.u8(static_cast<uint8_t>(page.bits));
-  for (int64_t b : page.base) w.varint(static_cast<uint64_t>(b));
+  write_lattice_base(w, page.bits, page.base);
   w.varint(page.faces);
   w.varint(page.points);
   w.varint(page.blob.size());
   w.bytes(page.blob);
-  write_sources(w, page.sources);
-  write_values(w, page.materials);
+  write_triangle_ids(w, page.sources, page.materials);
   write_raw_body(w, others);
 }
 
@@ -264,21 +197,13 @@ void write_payload(const DracoPage& page, const Scene& others, std::vector<uint8
 Status read_header(GeometryReader& r, const Lattice& lattice, DracoPage& page, LatticeIndex& extent) {
   if (r.u8() != kDracoMagic || !r.ok()) return corrupt(kCodec, 0, "bad magic or version");
   const uint8_t flags = r.u8();
-  page.bits = r.u8();
-  for (int64_t& b : page.base) b = static_cast<int64_t>(std::min<uint64_t>(r.varint(), INT64_MAX));
+  if ((flags & ~kDracoHasNormals) != 0 && r.ok()) return corrupt(kCodec, 1, "unknown flags");
+  if (Status s = read_lattice_base(r, kCodec, lattice, page.base, extent); !s) return s;
+  page.bits = lattice.bits;
   page.faces = r.varint();
   page.points = r.varint();
   const uint64_t blob_size = r.varint();
   if (!r.ok()) return corrupt(kCodec, r.offset(), "truncated header");
-  if ((flags & ~kDracoHasNormals) != 0) return corrupt(kCodec, 1, "unknown flags");
-  if (page.bits != lattice.bits) {
-    return corrupt(kCodec, 2, fmt::format("page lattice has {} bits, the model's {}", page.bits, lattice.bits));
-  }
-  const int64_t last = (int64_t{1} << page.bits) - 1;
-  for (int a = 0; a < 3; ++a) {
-    if (page.base[a] > last) return corrupt(kCodec, r.offset(), "base off the lattice");
-    extent[a] = last - page.base[a];
-  }
   page.normals = (flags & kDracoHasNormals) != 0;
   // A valid Draco stream holds at most 16 faces per byte (check_draco_stream).
   if (blob_size > r.remaining() || page.faces > 16 * blob_size + 1 || page.points > 3 * page.faces ||
@@ -337,10 +262,7 @@ Status decode_payload(std::span<const uint8_t> payload, const Lattice& lattice, 
   if (page.faces > 0) {
     if (Status s = read_mesh(page, extent, decoded_blob, mesh); !s) return s;
   }
-  if (!read_sources(r, page.faces, page.sources)) return corrupt(kCodec, r.offset(), "bad triangle sources");
-  if (!read_values(r, page.faces, UINT32_MAX, page.materials)) {
-    return corrupt(kCodec, r.offset(), "bad triangle materials");
-  }
+  if (Status s = read_triangle_ids(r, kCodec, page.faces, page.sources, page.materials); !s) return s;
   out = Scene{};
   add_triangles(page, mesh, lattice, out);
   if (Status s = read_raw_body(r, kCodec, false, out); !s) return s;
@@ -353,9 +275,9 @@ Status decode_payload(std::span<const uint8_t> payload, const Lattice& lattice, 
 Result<EncodedCell> encode_draco(const Scene& cell, const CellCodecOptions& options) {
   const bool normals = !cell.triangle_normals.empty();
   if (Status s = check_options(options, normals); !s) return s;
-  DracoCell split(cell.triangles.size());
-  if (Status s = split_cell(cell, options.lattice, split); !s) return s;
-  if (Status s = find_base(split); !s) return s;
+  LatticeCell split(cell.triangles.size());
+  if (Status s = split_lattice_cell(cell, options.lattice, split); !s) return s;
+  if (Status s = check_span(split); !s) return s;
 
   DracoPage page;
   page.normals = normals && !split.faces.empty();

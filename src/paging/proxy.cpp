@@ -106,20 +106,27 @@ double tessellation_error(const Scene& scene, uint32_t i, const std::vector<Tria
   }
 }
 
-// Vertices, edge midpoints and centroids of a mesh's triangles (`edges`: with midpoints).
-std::vector<Vec3> samples_of(const ProxyMesh& mesh, bool edges) {
-  std::vector<Vec3> out(mesh.positions);
-  out.reserve(out.size() + mesh.triangle_count() * (edges ? 4 : 1));
-  for (size_t t = 0; t < mesh.triangle_count(); ++t) {
-    const Vec3& a = mesh.positions[mesh.indices[3 * t]];
-    const Vec3& b = mesh.positions[mesh.indices[3 * t + 1]];
-    const Vec3& c = mesh.positions[mesh.indices[3 * t + 2]];
-    out.push_back((a + b + c) / 3.0);
-    if (edges) {
-      out.push_back(0.5 * (a + b));
-      out.push_back(0.5 * (b + c));
-      out.push_back(0.5 * (c + a));
-    }
+// The points where the proxy's distance to its input is sampled (proxy.h): the input's vertices
+// and the proxy's edge midpoints and centroids. The proxy's own vertices are input vertices (at
+// distance 0 both ways), so they are left out.
+std::vector<Vec3> input_samples(const ProxyMesh& input, const ProxyMesh& proxy) {
+  std::unordered_set<Vec3, PositionHash> kept(proxy.positions.begin(), proxy.positions.end());
+  std::vector<Vec3> out;
+  out.reserve(input.positions.size());
+  for (const Vec3& p : input.positions) {
+    if (!kept.contains(p)) out.push_back(p);
+  }
+  return out;
+}
+
+std::vector<Vec3> proxy_samples(const ProxyMesh& proxy) {
+  std::vector<Vec3> out;
+  out.reserve(4 * proxy.triangle_count());
+  for (size_t t = 0; t < proxy.triangle_count(); ++t) {
+    const Vec3& a = proxy.positions[proxy.indices[3 * t]];
+    const Vec3& b = proxy.positions[proxy.indices[3 * t + 1]];
+    const Vec3& c = proxy.positions[proxy.indices[3 * t + 2]];
+    out.insert(out.end(), {(a + b + c) / 3.0, 0.5 * (a + b), 0.5 * (b + c), 0.5 * (c + a)});
   }
   return out;
 }
@@ -175,8 +182,8 @@ ProxyMesh merge_proxies(const ProxyMesh& lower, const ProxyMesh& upper) {
 double sampled_distance(const ProxyMesh& input, const ProxyMesh& proxy) {
   const TriangleBvh proxy_bvh(proxy.positions, proxy.indices);
   const TriangleBvh input_bvh(input.positions, input.indices);
-  return std::max(farthest_sample(samples_of(input, false), proxy_bvh),
-                  farthest_sample(samples_of(proxy, true), input_bvh));
+  return std::max(farthest_sample(input_samples(input, proxy), proxy_bvh),
+                  farthest_sample(proxy_samples(proxy), input_bvh));
 }
 
 ProxyMesh simplify_proxy(const ProxyMesh& input, const ProxyOptions& options, ProxySimplifyStats* stats) {

@@ -17,8 +17,9 @@
 // The bound of a simplified node = max(meshoptimizer's error estimate, the measured two-sided
 // sampled distance between the proxy and its input) + the input's bound: by the triangle
 // inequality, a chain of such bounds covers the distance to the subtree's original geometry. The
-// measured distance samples every input vertex and triangle centroid against the proxy and every
-// proxy vertex, edge midpoint and centroid against the input (TriangleBvh queries).
+// measured distance samples every input vertex against the proxy and every proxy vertex, edge
+// midpoint and centroid against the input (TriangleBvh queries; proxy vertices are input vertices,
+// at distance 0 both ways, and are not queried).
 //
 // All functions are pure and may run on any number of threads at once.
 #pragma once
@@ -47,11 +48,11 @@ struct ProxyMesh {
 
 struct ProxyOptions {
   // Simplify a node's input to about this many triangles (a node with fewer keeps them all).
-  uint32_t target_triangles = 256;
+  uint32_t target_triangles = 128;
   // Tessellated curved primitives are snapped to it (the Draco codec requires lattice positions).
   std::optional<Lattice> lattice;
   // Segments around a circle for curved primitives (src/core/tessellate.h).
-  int segments = 12;
+  int segments = 6;
 };
 
 // What simplify_proxy did, for the build's report.

@@ -84,20 +84,26 @@ TriangleBvh::TriangleBvh(std::span<const Vec3> positions, std::span<const uint32
   }
   if (!triangles_.empty()) {
     nodes_.reserve(2 * triangles_.size() / kLeafTriangles + 1);
-    build(0, static_cast<uint32_t>(triangles_.size()), centroids);
+    std::vector<uint32_t> order(triangles_.size());
+    std::iota(order.begin(), order.end(), 0u);
+    build(0, static_cast<uint32_t>(triangles_.size()), order, centroids);
+    std::vector<Triangle> sorted(triangles_.size());
+    for (size_t i = 0; i < order.size(); ++i) sorted[i] = triangles_[order[i]];
+    triangles_ = std::move(sorted);
   }
 }
 
-uint32_t TriangleBvh::build(uint32_t first, uint32_t count, std::vector<Vec3>& centroids) {
+uint32_t TriangleBvh::build(uint32_t first, uint32_t count, std::vector<uint32_t>& order,
+                            const std::vector<Vec3>& centroids) {
   const auto index = static_cast<uint32_t>(nodes_.size());
   nodes_.push_back({});
   Aabb box, centre_box;
   for (uint32_t i = first; i < first + count; ++i) {
-    const Triangle& t = triangles_[i];
+    const Triangle& t = triangles_[order[i]];
     box.extend(t.v0);
     box.extend(t.v1);
     box.extend(t.v2);
-    centre_box.extend(centroids[i]);
+    centre_box.extend(centroids[order[i]]);
   }
   nodes_[index].box = box;
   if (count <= kLeafTriangles) {
@@ -108,34 +114,30 @@ uint32_t TriangleBvh::build(uint32_t first, uint32_t count, std::vector<Vec3>& c
   const Vec3 e = centre_box.extent();
   const int axis = e.x >= e.y && e.x >= e.z ? 0 : (e.y >= e.z ? 1 : 2);
   const uint32_t half = count / 2;
-  // Sort triangles and their centroids together through a permutation of this range.
-  std::vector<uint32_t> order(count);
-  std::iota(order.begin(), order.end(), first);
-  std::nth_element(order.begin(), order.begin() + half, order.end(),
+  const auto begin = order.begin() + first;
+  std::nth_element(begin, begin + half, begin + count,
                    [&](uint32_t a, uint32_t b) { return centroids[a][axis] < centroids[b][axis]; });
-  std::vector<Triangle> tris(count);
-  std::vector<Vec3> cents(count);
-  for (uint32_t i = 0; i < count; ++i) {
-    tris[i] = triangles_[order[i]];
-    cents[i] = centroids[order[i]];
-  }
-  std::copy(tris.begin(), tris.end(), triangles_.begin() + first);
-  std::copy(cents.begin(), cents.end(), centroids.begin() + first);
-  build(first, half, centroids);
-  const uint32_t upper = build(first + half, count - half, centroids);
-  nodes_[index].first = upper;
+  build(first, half, order, centroids);
+  nodes_[index].first = build(first + half, count - half, order, centroids);
   return index;
 }
 
 double TriangleBvh::distance(const Vec3& p) const {
   if (nodes_.empty()) return kInfinity;
   double best2 = kInfinity;
-  uint32_t stack[128];
+  // Nodes to visit with the squared distance to their box (a lower bound), nearer child on top.
+  // Median splits keep the depth at log2(n / 4) + 1, each level pushing at most two entries.
+  struct Entry {
+    uint32_t node;
+    double d2;
+  };
+  Entry stack[128];
   int top = 0;
-  stack[top++] = 0;
+  stack[top++] = {0, box_distance2(nodes_[0].box, p)};
   while (top > 0) {
-    const Node& n = nodes_[stack[--top]];
-    if (box_distance2(n.box, p) >= best2) continue;
+    const Entry entry = stack[--top];
+    if (entry.d2 >= best2) continue;
+    const Node& n = nodes_[entry.node];
     if (n.count > 0) {
       for (uint32_t i = n.first; i < n.first + n.count; ++i) {
         const Triangle& t = triangles_[i];
@@ -144,16 +146,14 @@ double TriangleBvh::distance(const Vec3& p) const {
       }
       continue;
     }
-    const auto lower = static_cast<uint32_t>(&n - nodes_.data()) + 1, upper = n.first;
+    const uint32_t lower = entry.node + 1, upper = n.first;
     const double dl = box_distance2(nodes_[lower].box, p), du = box_distance2(nodes_[upper].box, p);
-    // Nearer child last: popped first. Depth is at most log2(n / 4) + 1 per level pushed, so the
-    // stack never holds more than 2 per level.
     if (dl < du) {
-      stack[top++] = upper;
-      stack[top++] = lower;
+      if (du < best2) stack[top++] = {upper, du};
+      stack[top++] = {lower, dl};
     } else {
-      stack[top++] = lower;
-      stack[top++] = upper;
+      if (dl < best2) stack[top++] = {lower, dl};
+      stack[top++] = {upper, du};
     }
   }
   return std::sqrt(best2);

@@ -35,7 +35,7 @@ class TriangleBvh {
     uint32_t first = 0;  // leaf: into triangles_; interior: the upper child (the lower is next)
     uint32_t count = 0;  // 0: interior
   };
-  uint32_t build(uint32_t first, uint32_t count, std::vector<Vec3>& centroids);
+  uint32_t build(uint32_t first, uint32_t count, std::vector<uint32_t>& order, const std::vector<Vec3>& centroids);
 
   std::vector<Triangle> triangles_;
   std::vector<Node> nodes_;

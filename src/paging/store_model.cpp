@@ -139,15 +139,24 @@ Result<uint32_t> check_tree(const std::vector<KdTree::Node>& nodes, const std::v
   return depth;
 }
 
+// An optional section's bytes (Corruption naming the store and the section when its block is
+// damaged); `where` says which ("STORE: NAME section").
+Result<std::vector<uint8_t>> read_optional_section(const store::StoreReader& reader, std::string_view name,
+                                                   std::string& where) {
+  where = fmt::format("{}: {} section", reader.name(), name);
+  auto bytes = reader.read_section(name);
+  if (!bytes && bytes.status().code() == Status::Code::Corruption) {
+    return Status::corruption(fmt::format("{}: {}", where, bytes.status().message()));
+  }
+  return bytes;
+}
+
 // The `portals` section when the store has one (Corruption naming the store and the section
 // when it is damaged); `out` stays empty without it.
 Status read_portals(const store::StoreReader& reader, std::optional<PortalGraph>& out) {
   if (!reader.section(kPortalsSection)) return Status::ok();
-  const std::string where = fmt::format("{}: {} section", reader.name(), kPortalsSection);
-  auto bytes = reader.read_section(kPortalsSection);
-  if (!bytes && bytes.status().code() == Status::Code::Corruption) {
-    return Status::corruption(fmt::format("{}: {}", where, bytes.status().message()));
-  }
+  std::string where;
+  auto bytes = read_optional_section(reader, kPortalsSection, where);
   if (!bytes) return bytes.status();
   auto graph = PortalGraph::deserialize(*bytes, where);
   if (!graph) return graph.status();
@@ -175,11 +184,8 @@ std::vector<Aabb> node_regions(const std::vector<KdTree::Node>& nodes, const Aab
 Status read_proxies(const store::StoreReader& reader, const std::vector<KdTree::Node>& nodes,
                     std::vector<StoreProxy>& out) {
   if (!reader.section(kProxiesSection)) return Status::ok();
-  const std::string where = fmt::format("{}: {} section", reader.name(), kProxiesSection);
-  auto bytes = reader.read_section(kProxiesSection);
-  if (!bytes && bytes.status().code() == Status::Code::Corruption) {
-    return Status::corruption(fmt::format("{}: {}", where, bytes.status().message()));
-  }
+  std::string where;
+  auto bytes = read_optional_section(reader, kProxiesSection, where);
   if (!bytes) return bytes.status();
   auto proxies = decode_proxies(*bytes, reader.page_count(), where);
   if (!proxies) return proxies.status();
@@ -405,7 +411,7 @@ Status StoreModel::decode_proxy_page(uint32_t node, uint8_t codec, std::span<con
   // Proxy vertices are vertices of the subtree's primitives, which may reach past the region by
   // as much as a primitive straddling it does: only a vertex outside the model's bounds is wrong.
   Aabb bounds = info_.bounds;
-  const double eps = 1e-9 * glm::length(bounds.extent()) + (info_.codec == CellCodec::Draco ? info_.lattice.step : 0.0);
+  const double eps = 1e-9 * glm::length(bounds.extent()) + (cell_codec_on_lattice(info_.codec) ? info_.lattice.step : 0.0);
   bounds.lo -= Vec3(eps);
   bounds.hi += Vec3(eps);
   for (uint32_t i = 0; i < out.size(); ++i) {
@@ -452,7 +458,7 @@ Status StoreModel::check_cell(uint32_t cell, const Scene& decoded) const {
   }
   // Snapped or decoded geometry may sit a lattice step across the region: allow that much.
   Aabb region = c.bounds;
-  const double slack = info_.codec == CellCodec::Draco ? info_.lattice.step : 0.0;
+  const double slack = cell_codec_on_lattice(info_.codec) ? info_.lattice.step : 0.0;
   const double eps = slack + 1e-9 * glm::length(info_.bounds.extent());
   region.lo -= Vec3(eps);
   region.hi += Vec3(eps);

@@ -116,7 +116,7 @@ int main(int argc, char** argv) {
   bool spill_inputs = false;
   app.add_option("models", models, "model files (binary PLY from frontier-gen, ...)")->required();
   app.add_option("--bits", bits, "lattice bits to measure (Draco)");
-  app.add_option("--codecs", codecs, "codecs to measure: draco, raw");
+  app.add_option("--codecs", codecs, "codecs to measure: draco, meshopt, raw");
   app.add_option("--memory", memory, "build memory budget");
   app.add_option("--threads", threads, "build threads");
   app.add_option("-o,--output", output, "scratch store path (removed at the end)");
@@ -133,7 +133,12 @@ int main(int argc, char** argv) {
         BuildOptions o;
         o.inputs = {model};
         o.output = output;
-        o.codec = codec == "raw" ? CellCodec::Raw : CellCodec::Draco;
+        const std::optional<CellCodec> tag = cell_codec_named(codec);
+        if (!tag) {
+          std::fprintf(stderr, "bench_build: unknown codec %s\n", codec.c_str());
+          return 2;
+        }
+        o.codec = *tag;
         o.quant_bits = b;
         o.threads = threads;
         o.quiet = true;

@@ -1,12 +1,12 @@
 // libFuzzer target for the cell page decoders (src/paging/cell_codec.h): the first input byte picks
-// the codec (even: raw, odd: Draco), the rest is the page payload, decoded against a fixed
+// the codec (its value mod 3: raw, Draco, meshopt), the rest is the page payload, decoded against a fixed
 // 16-bit lattice. Any crash, leak, sanitizer report, hang or out-of-memory is a finding; a
 // Corruption status is the expected outcome for garbage. A scene that decodes must be usable:
-// every primitive refers into its array and Draco vertices lie on the lattice.
+// every primitive refers into its array and lattice codecs' vertices lie on the lattice.
 //
-// With FRONTIER_FUZZ_SEEDS=DIR in the environment, start-up first writes valid pages of both
-// codecs into DIR (tests/fuzz/run.sh passes the corpus directory), so that mutation starts
-// from real Draco streams rather than having to discover them.
+// With FRONTIER_FUZZ_SEEDS=DIR in the environment, start-up first writes valid pages of every
+// codec into DIR (tests/fuzz/run.sh passes the corpus directory), so that mutation starts
+// from real Draco and meshoptimizer streams rather than having to discover them.
 #include "src/paging/cell_codec.h"
 
 #include <cmath>
@@ -63,7 +63,7 @@ Scene seed_scene(int n, bool normals, bool others) {
 
 void write_seeds(const std::string& dir) {
   int written = 0;
-  for (CellCodec codec : {CellCodec::Raw, CellCodec::Draco}) {
+  for (CellCodec codec : {CellCodec::Raw, CellCodec::Draco, CellCodec::Meshopt}) {
     for (int n : {0, 1, 4, 12}) {
       for (bool normals : {false, true}) {
         frontier::CellCodecOptions options;
@@ -74,7 +74,7 @@ void write_seeds(const std::string& dir) {
         const std::string path = dir + "/seed-" + std::to_string(written++);
         FILE* f = std::fopen(path.c_str(), "wb");
         if (f == nullptr) return;
-        const uint8_t tag = codec == CellCodec::Draco ? 1 : 0;
+        const auto tag = static_cast<uint8_t>(codec);
         std::fwrite(&tag, 1, 1, f);
         std::fwrite(encoded->payload.data(), 1, encoded->payload.size(), f);
         std::fclose(f);
@@ -99,7 +99,7 @@ void check_usable(const Scene& scene, CellCodec codec) {
   for (const frontier::Quadric& q : scene.quadrics) {
     if (q.clip_count < 0 || q.clip_count > frontier::Quadric::kMaxClipPlanes) __builtin_trap();
   }
-  if (codec == CellCodec::Draco) {
+  if (frontier::cell_codec_on_lattice(codec)) {
     const Lattice& lattice = fuzz_lattice();
     const int64_t last = (int64_t{1} << lattice.bits) - 1;
     const Vec3 hi = lattice.point({last, last, last});
@@ -123,7 +123,7 @@ extern "C" int LLVMFuzzerInitialize(int* /*argc*/, char*** /*argv*/) {
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   if (size == 0) return 0;
-  const CellCodec codec = (data[0] & 1) != 0 ? CellCodec::Draco : CellCodec::Raw;
+  const auto codec = static_cast<CellCodec>(data[0] % 3);
   Scene scene;
   const frontier::Status s = frontier::decode_cell({data + 1, size - 1}, codec, fuzz_lattice(), scene);
   if (s.is_ok()) {
