@@ -109,8 +109,8 @@ TEST(Visibility, NamesRoundTrip) {
 }
 
 // Every rasterizing class equals brute force on the tessellated SPD scenes, from the file's
-// camera and from one moved into the scene (where frustum and occlusion culling cut most);
-// back-face culling too (the tessellated solids are closed and seen from outside).
+// camera and from one moved into the scene (where frustum and occlusion culling cut most).
+// (Back-face culling: Visibility.BackFaceCullingKeepsSpheresExact.)
 TEST(Visibility, ClassesEqualBruteForceOnTheSpdScenes) {
   for (const char* name : {"rings", "tree", "shells"}) {
     const Scene scene = tessellated_spd(name);
@@ -121,32 +121,18 @@ TEST(Visibility, ClassesEqualBruteForceOnTheSpdScenes) {
       const Reference ref(scene, view);
       uint64_t exhaustive_prims = 0, frustum_prims = 0, occlusion_cells = 0, frustum_cells = 0;
       for (const Visibility v : kRasterizing) {
-        for (const bool back : {false}) {
-          SCOPED_TRACE(std::string(name) + " advance " + std::to_string(advance) + " " + visibility_name(v) +
-                       (back ? " back-face culling" : ""));
-          CullOptions o;
-          o.visibility = v;
-          o.cull_back_faces = back;
-          o.threads = 2;
-          CullingRenderer renderer(o);
-          const CullCounters c = renderer.render(view, source);
-          std::string first;
-          EXPECT_EQ(mismatches(scene, view, ref, renderer.ids(), renderer.depths(), first), 0u) << first;
-          if (back) {
-            EXPECT_GT(c.back_faces_culled, 0u);
-            continue;
-          }
-          if (v == Visibility::kExhaustive) {
-            exhaustive_prims = c.primitives_rasterized;
-            EXPECT_EQ(c.primitives_rasterized, scene.size()) << "exhaustive draws every primitive once";
-            EXPECT_EQ(c.cells_touched, tree.cells().size());
-          }
-          if (v == Visibility::kFrustumCull) {
-            frustum_prims = c.primitives_rasterized;
-            frustum_cells = c.cells_touched;
-          }
-          if (v == Visibility::kOcclusionCull) occlusion_cells = c.cells_touched;
+        SCOPED_TRACE(std::string(name) + " advance " + std::to_string(advance) + " " + visibility_name(v));
+        const CullCounters c = render_exact(scene, view, ref, source, v);
+        if (v == Visibility::kExhaustive) {
+          exhaustive_prims = c.primitives_rasterized;
+          EXPECT_EQ(c.primitives_rasterized, scene.size()) << "exhaustive draws every primitive once";
+          EXPECT_EQ(c.cells_touched, tree.cells().size());
         }
+        if (v == Visibility::kFrustumCull) {
+          frustum_prims = c.primitives_rasterized;
+          frustum_cells = c.cells_touched;
+        }
+        if (v == Visibility::kOcclusionCull) occlusion_cells = c.cells_touched;
       }
       EXPECT_LE(frustum_prims, exhaustive_prims);
       EXPECT_LE(occlusion_cells, frustum_cells);

@@ -72,14 +72,15 @@ struct WalkTotals {
   uint64_t bytes_read = 0, ratio_frames = 0, errors = 0, resident_max = 0, collision_max = 0;
   uint64_t complete = 0, floor_frames = 0;
   // Thrashing (FrameReport::thrashing): frames, the largest working set and the cache it needs.
-  uint64_t thrashing = 0, unfit = 0, cells_reread = 0, working_set_max = 0, cache_needed = 0, frame_read_max = 0;
+  uint64_t thrashing = 0, unfit = 0, cells_reread = 0, working_set_max = 0, frame_read_max = 0;
+  // The cache that holds the largest working set (FrameReport::cache_needed of that frame).
+  uint64_t cache_needed() const { return PagedWorld::budget_for(working_set_max); }
 
   void add(const FrameReport& r) {
     thrashing += r.thrashing ? 1 : 0;
     unfit += r.unfit ? 1 : 0;
     cells_reread += r.cells_reread;
     working_set_max = std::max(working_set_max, r.working_set_bytes);
-    cache_needed = std::max(cache_needed, r.cache_needed);
     frame_read_max = std::max(frame_read_max, r.bytes_read);
     frame_ms.push_back(r.frame_ms);
     samples += double(r.samples);
@@ -122,7 +123,7 @@ nlohmann::json summary_json(const ViewerOptions& o, const WalkTotals& t, const W
                             {"unfit_frames", t.unfit},
                             {"cells_reread", t.cells_reread},
                             {"max_working_set_bytes", t.working_set_max},
-                            {"cache_needed", t.cache_needed}};
+                            {"cache_needed", t.cache_needed()}};
   if (t.ratio_frames > 0) {
     summary["mean_touched_oracle_ratio"] = t.ratio_sum / double(t.ratio_frames);
     summary["max_touched_oracle_ratio"] = t.ratio_max;
@@ -168,12 +169,12 @@ void print_thrashing(const ViewerOptions& o, const WalkTotals& t, const Walkthro
              "the {:.1f} MiB that --cache {} holds for decoded cells, so frames page cells in again ({} cells re-read "
              "within a frame, up to {:.1f} MiB read from the store in one frame); use --cache {:.0f}M or more\n",
              t.thrashing, t.frames(), double(t.working_set_max) / mib, double(walk.world().decoded_budget()) / mib,
-             o.cache_text, t.cells_reread, double(t.frame_read_max) / mib, double(t.cache_needed) / mib);
+             o.cache_text, t.cells_reread, double(t.frame_read_max) / mib, double(t.cache_needed()) / mib);
   if (t.unfit > 0) {
     fmt::print(stderr,
                "frontier-view: {} frames could not complete: the cells one pixel's rays cross do not fit in --cache {}; "
                "use --cache {:.0f}M or more\n",
-               t.unfit, o.cache_text, double(t.cache_needed) / mib);
+               t.unfit, o.cache_text, double(t.cache_needed()) / mib);
   }
 }
 
