@@ -45,9 +45,16 @@
 // stand-ins are charged to the decoded share like cells. With pixel_error 0 and no missing
 // stand-ins (sync paging, or frames run to completion) nothing stands in: the exact renderer.
 //
+// Decoding ahead. A decoder thread takes wanted cells whose pages have arrived, the one that
+// spans the most pixels from the current eye first (cell size over distance), decodes and
+// refines them off the frame, and leaves them for sync(), which only grafts them (O(cell)).
+// What it holds decoded stays below a sixteenth of the decoded share and below the room the
+// world had at the last sync(); a decode that does not fit is dropped and its cell wanted
+// again. sync() also decodes ready pages itself, in parallel, until its deadline.
+//
 // Threads: missing() and want() are called by render workers while a frame slice runs; every
 // other call is made by the owner between slices (no slice running). I/O runs on the cache's
-// loader thread; decoding and subtree builds run in parallel inside sync().
+// loader thread; the decoder thread shares only wanted_ (wanted_mutex_) and its own state.
 #pragma once
 
 #include "src/engine/cell_gate.h"
@@ -64,6 +71,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <iterator>
 #include <memory>
 #include <mutex>
 #include <vector>
@@ -86,15 +94,16 @@ struct PagingCounters {
   uint64_t cells_reread = 0;    // cells grafted again in the same image (released in between)
   uint64_t stand_ins = 0;       // stand-ins grafted (see the top of this file)
   uint64_t proxies_loaded = 0;  // proxy pages decoded
-  double decode_ms = 0.0;       // wall time of decode + subtree build + graft in sync()
+  double decode_ms = 0.0;       // wall time of sync() (on the frame's thread): placing, decoding, grafting
+  double decode_ahead_ms = 0.0; // decoder thread time spent decoding cells sync() placed since
 };
 
 // What stood in for the cells an image touched (PagedWorld::stand_in_report).
 struct StandInReport {
-  uint64_t proxy_nodes = 0;    // distinct proxy nodes that drew touched cells
-  uint64_t missing_nodes = 0;  // of those, nodes drawing cells whose pages were missing
-  uint64_t detail_cells = 0;   // touched cells drawn by a proxy for detail (pixel error)
-  uint64_t missing_cells = 0;  // touched cells drawn by a proxy while their pages were missing
+  uint64_t proxy_nodes = 0;    // distinct top nodes whose proxies the frame's rays entered
+  uint64_t missing_nodes = 0;  // of those, nodes standing in for cells whose pages were missing
+  uint64_t detail_cells = 0;   // store cells the rays reached drawn by a proxy for detail (pixel error)
+  uint64_t missing_cells = 0;  // store cells the rays reached drawn by a proxy while their pages were missing
 };
 
 class PagedWorld final : public CellGate {
@@ -187,8 +196,8 @@ class PagedWorld final : public CellGate {
   // Stand-ins replaced by their pages (or by a finer proxy) so far: an image that showed
   // stand-ins is out of date once this grows.
   uint64_t stand_ins_replaced() const { return stand_ins_replaced_; }
-  // What stood in for the cells in `cells` (store cells, e.g. image_cells()).
-  StandInReport stand_in_report(const std::vector<uint32_t>& cells) const;
+  // What stood in for the cells the current pass reached (`marks`: the caster's).
+  StandInReport stand_in_report(const CellMarks& marks) const;
   // Decoded proxies' bytes (within the decoded share).
   uint64_t proxy_bytes() const { return proxy_bytes_; }
 
@@ -212,6 +221,7 @@ class PagedWorld final : public CellGate {
   struct Decoded;
   struct SyncPass;
   struct ProxySlot;
+  struct DecoderState;
   void decode(uint32_t cell, Decoded& out) const;
   bool sync_impl(std::chrono::steady_clock::time_point deadline, bool evict);
   std::vector<uint32_t> take_ready();
@@ -232,6 +242,22 @@ class PagedWorld final : public CellGate {
   void forget_dropped();
   // Decoded bytes held in the decoded share besides live cells: garbage and proxies.
   uint64_t held_besides_cells() const { return garbage_bytes_ + proxy_bytes_; }
+
+  // Decoding ahead (paged_world_decoder.cpp).
+  static constexpr uint64_t kDecodeAheadShareDivisor = 16;
+  void start_decoder();
+  void stop_decoder();
+  void decoder_loop();
+  // Takes up to `count` ready cells off wanted_, those to decode first.
+  std::vector<uint32_t> pick_ready(const Vec3& eye, bool has_eye, size_t count);
+  static constexpr size_t kDecodeBatch = 4;
+  // Tells the decoder how much room the decoded share has now.
+  void publish_room();
+  void set_decode_eye(const Vec3& eye);
+  std::vector<Decoded> take_decoded();
+  // Gives back decoded cells sync() had no time to place.
+  void keep_decoded(std::move_iterator<std::vector<Decoded>::iterator> first,
+                    std::move_iterator<std::vector<Decoded>::iterator> last);
 
   // Stand-ins (paged_world_stand_in.cpp).
   void open_proxies();
@@ -255,6 +281,8 @@ class PagedWorld final : public CellGate {
   // Grafts node `node`'s proxy as a subtree over its region (once); false when it does not fit.
   bool graft_proxy(uint32_t node);
   std::array<int32_t, 6> node_ropes(uint32_t node) const;
+  // Appends the store cells under top node `node` whose regions overlap `box`.
+  void cells_under(uint32_t node, const Aabb& box, std::vector<uint32_t>& out) const;
   void drop_proxy(uint32_t node);
   // Unlinks the cells drawn by node's proxy and removes its subtree (the decoded proxy stays).
   void release_proxy_graft(uint32_t node);
@@ -311,6 +339,7 @@ class PagedWorld final : public CellGate {
   std::vector<uint32_t> wanted_;
 
   PagingCounters counters_;
+  std::unique_ptr<DecoderState> decoder_;  // last: its thread stops first
 };
 
 }  // namespace frontier

@@ -3,6 +3,11 @@
 
 #include "src/paging/paged_world.h"
 
+#include <tbb/task_arena.h>
+
+#include <condition_variable>
+#include <thread>
+
 namespace frontier {
 
 // Where a grafted cell's pieces live in the world's arrays (each a contiguous range: a graft
@@ -44,6 +49,25 @@ struct PagedWorld::ProxySlot {
   uint64_t used = 0;         // proxy_use_ stamp of the last stand-in made from it
   int32_t graft = -1;        // its subtree's index in live_ once a cell links to it (-1: none)
   std::vector<uint32_t> linked;  // store cells whose top leaves link to that subtree
+};
+
+// The decoder thread's shared state (paged_world_decoder.cpp). Lock order: wanted_mutex_, then
+// `mutex`.
+struct PagedWorld::DecoderState {
+  std::thread thread;
+  tbb::task_arena arena{1, 1};
+  std::mutex mutex;
+  std::condition_variable cv;
+  bool stop = false;
+  std::vector<Decoded> done;      // decoded, not placed yet
+  uint64_t done_bytes = 0;
+  size_t in_flight = 0;           // taken off wanted_, being decoded
+  uint64_t cap = 0;               // done_bytes stay below this
+  uint64_t room = 0;              // the decoded share's free bytes at the last publish_room()
+  uint64_t room_generation = 0;
+  Vec3 eye{0.0};                  // the current view's eye (priority)
+  bool has_eye = false;
+  double ms = 0.0;                // decoding time since the last take_decoded()
 };
 
 }  // namespace frontier

@@ -307,6 +307,7 @@ bool PagedWorld::stand_in_wanted(std::chrono::steady_clock::time_point deadline)
 
 void PagedWorld::set_detail(const View& view, double pixel_error, bool stand_in_missing) {
   detail_view_ = view;
+  set_decode_eye(view.eye);
   pixel_error_ = proxy_.empty() ? 0.0 : pixel_error;
   stand_in_missing_ = !proxy_.empty() && stand_in_missing;
   node_pixels_.assign(proxy_.size(), kInfinity);
@@ -336,26 +337,55 @@ void PagedWorld::review_stand_ins() {
   stand_in_cells_.swap(kept);
 }
 
-StandInReport PagedWorld::stand_in_report(const std::vector<uint32_t>& cells) const {
-  StandInReport r;
-  std::vector<int32_t> nodes, missing_nodes;
-  for (const uint32_t c : cells) {
-    const int32_t n = stand_in_node_[c];
-    if (n < 0) continue;
-    nodes.push_back(n);
-    if (stand_in_detail_[c]) {
-      ++r.detail_cells;
-    } else {
-      ++r.missing_cells;
-      missing_nodes.push_back(n);
+void PagedWorld::cells_under(uint32_t node, const Aabb& box, std::vector<uint32_t>& out) const {
+  // The store's top tree below `node`, descended to the leaves whose regions share volume with
+  // `box` (a face in common is not enough: a ray in `box` never entered such a leaf).
+  const auto& nodes = model_.nodes();
+  std::vector<uint32_t> stack{node};
+  while (!stack.empty()) {
+    const uint32_t n = stack.back();
+    stack.pop_back();
+    if (nodes[n].is_leaf()) {
+      out.push_back(nodes[n].child);
+      continue;
     }
+    const int a = static_cast<int>(nodes[n].axis_or_leaf);
+    if (box.lo[a] < nodes[n].split) stack.push_back(n + 1);
+    if (box.hi[a] > nodes[n].split) stack.push_back(nodes[n].child);
   }
-  auto distinct = [](std::vector<int32_t>& v) {
-    std::sort(v.begin(), v.end());
-    return uint64_t(std::unique(v.begin(), v.end()) - v.begin());
-  };
-  r.proxy_nodes = distinct(nodes);
-  r.missing_nodes = distinct(missing_nodes);
+}
+
+StandInReport PagedWorld::stand_in_report(const CellMarks& marks) const {
+  // Rays that reach a stood-in cell go on in its proxy's subtree, whose world cells have no store
+  // owner: what a proxy drew is read from its marked world cells, and the stood-in cells it drew
+  // for are the linked ones under those cells.
+  StandInReport r;
+  std::vector<uint8_t> counted(top_cells_, 0);
+  std::vector<uint32_t> under;
+  for (size_t n = 0; n < proxy_.size(); ++n) {
+    const ProxySlot& slot = proxy_[n];
+    if (slot.graft < 0) continue;
+    const Graft& g = live_[size_t(slot.graft)];
+    bool drew = false, for_missing = false;
+    for (uint32_t wc = g.cell0; wc < g.cell0 + g.cells && wc < marks.size(); ++wc) {
+      if (!marks.marked(int32_t(wc))) continue;
+      drew = true;
+      under.clear();
+      cells_under(uint32_t(n), tree_.cells()[wc].bounds, under);
+      for (const uint32_t c : under) {
+        if (counted[c] || stand_in_node_[c] != int32_t(n)) continue;
+        counted[c] = 1;
+        if (stand_in_detail_[c]) {
+          ++r.detail_cells;
+        } else {
+          ++r.missing_cells;
+          for_missing = true;
+        }
+      }
+    }
+    if (drew) ++r.proxy_nodes;
+    if (for_missing) ++r.missing_nodes;
+  }
   return r;
 }
 

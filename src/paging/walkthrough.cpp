@@ -19,6 +19,8 @@ constexpr int kPrefetchFrames = 4;
 // The share of the decoded cells' room a pass of a thrashing image aims to fill (the rest
 // absorbs the error of estimating a part's cells from the last part's).
 constexpr double kPassFill = 0.75;
+// Share of a pegged frame time that paging in (on the frame's thread) may take at a time.
+constexpr double kPageInShare = 0.25;
 
 bool same_camera(const Camera& a, const Camera& b) {
   return a.eye == b.eye && a.look_at == b.look_at && a.up == b.up && a.vfov_deg == b.vfov_deg;
@@ -66,6 +68,7 @@ nlohmann::json FrameReport::to_json() const {
                       {"collision_loads", collision_loads},
                       {"collision_errors", collision_errors},
                       {"decode_ms", decode_ms},
+                      {"decode_ahead_ms", decode_ahead_ms},
                       {"reconstruct_ms", reconstruct_ms},
                       {"shading_ops", shading_ops},
                       {"shadow_rays", shadow_rays},
@@ -224,6 +227,7 @@ void Walkthrough::report_paging(FrameReport& r) {
   r.stand_ins = paging.stand_ins;
   r.proxies_loaded = paging.proxies_loaded;
   r.decode_ms = paging.decode_ms;
+  r.decode_ahead_ms = paging.decode_ahead_ms;
   r.bytes_read = cache.bytes_read - last_bytes_read_;
   last_bytes_read_ = cache.bytes_read;
   r.page_errors = cache.errors;
@@ -331,7 +335,7 @@ Walkthrough::FramePlan Walkthrough::plan_frame(Clock::time_point start, bool sti
     // Paging in (decode + subtree build) is frame time too: it gets at most a quarter of the
     // frame while other work is queued; the rest waits for the next frame (its work stays
     // parked), so a burst of new cells costs samples over a few frames instead of most of one.
-    plan.page_in_deadline = std::min(plan.deadline, after(0.25 * budget.ms));
+    plan.page_in_deadline = std::min(plan.deadline, after(kPageInShare * budget.ms));
     // The quality floor (WalkOptions::min_sampled) holds for moving frames under a time peg.
     if (!still) plan.floor_samples = static_cast<uint64_t>(options_.min_sampled * double(view_.pixels()));
   }
@@ -342,8 +346,10 @@ double Walkthrough::render_image(FramePlan& plan, Counters& counters) {
   const FrameBudget& budget = options_.budget;
   double stall_ms = 0.0;
   while (true) {
-    // With nothing else to do, paging in may use the rest of the frame.
-    if (world_->sync(caster_->runnable() ? plan.page_in_deadline : plan.deadline)) {
+    // With nothing else to do, paging in may go on, a paging share at a time in a frame that
+    // may end early (what it grafts is drawn before the frame ends), to the end of a frame
+    // that waits for every page.
+    if (world_->sync(caster_->runnable() ? plan.page_in_deadline : page_in_slice(plan))) {
       caster_->tree_changed();
       caster_->resume_parked();
     }
@@ -362,6 +368,13 @@ double Walkthrough::render_image(FramePlan& plan, Counters& counters) {
     stall_ms += world_->wait_for_pages(plan.wait_for_all ? Clock::time_point::max() : plan.deadline);
   }
   return stall_ms;
+}
+
+Clock::time_point Walkthrough::page_in_slice(const FramePlan& plan) const {
+  if (plan.wait_for_all || options_.budget.ms <= 0.0) return plan.deadline;
+  const auto share = std::chrono::duration_cast<Clock::duration>(
+      std::chrono::duration<double, std::milli>(kPageInShare * options_.budget.ms));
+  return std::min(plan.deadline, Clock::now() + share);
 }
 
 bool Walkthrough::next_pass(bool finish) {
@@ -460,9 +473,9 @@ void Walkthrough::report_image(FrameReport& r, const Counters& counters) const {
   r.parked = caster_->parked() + caster_->held();
   r.pixel_error = image_pixel_error_;
   if (world_->has_proxies()) {
-    const StandInReport s = world_->stand_in_report(world_->image_cells(marks_));
+    const StandInReport s = world_->stand_in_report(marks_);
     r.proxy_nodes = s.proxy_nodes;
-    r.missing_nodes = s.missing_nodes;
+    r.missing_nodes = s.missing_cells;
     for (size_t i = 0; i < buffer_.size(); ++i) {
       if (buffer_.confirmed(i) && world_->stand_in_prim(buffer_.prim(i))) ++r.proxy_pixels;
     }

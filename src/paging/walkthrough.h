@@ -145,13 +145,15 @@ struct FrameReport {
   uint64_t collision_errors = 0;
   // Fills the collision fields from a walker (queries) and its grid (brick cache).
   void add_walk_counters(const Walker& walker);
-  double decode_ms = 0.0;
+  double decode_ms = 0.0;        // paging in on the frame's thread (sync)
+  double decode_ahead_ms = 0.0;  // decoding on the decoder thread, of the cells grafted in this frame
   double reconstruct_ms = 0.0;      // 0 when the frame did not reconstruct its image
   uint64_t shading_ops = 0;
   uint64_t shadow_rays = 0;
-  // Stand-ins (stores with proxies): the pixel error this image was rendered with; distinct
-  // proxy nodes drawing the cells it touched, and those of them drawing cells whose pages were
-  // missing; pixels confirmed on a proxy; stand-ins grafted and proxies decoded in this frame.
+  // Stand-ins (stores with proxies): the pixel error this image was rendered with; distinct top
+  // nodes whose proxies the image's rays entered; the store cells those rays reached that were
+  // drawn by an ancestor's proxy because their pages were missing; pixels confirmed on a proxy;
+  // stand-ins grafted and proxies decoded in this frame.
   double pixel_error = 0.0;
   uint64_t proxy_nodes = 0;
   uint64_t missing_nodes = 0;
@@ -232,6 +234,8 @@ class Walkthrough {
   // When only parked work is left and no page is on its way: frees room and starts the next
   // pass (see the top of this file). False when the frame ends here.
   bool next_pass(bool finish);
+  // When a sync() with nothing to render meanwhile stops paging in.
+  std::chrono::steady_clock::time_point page_in_slice(const FramePlan& plan) const;
   // The caster goes on after the world's cells were renumbered.
   void resume_renumbered();
   void keep_ids();
