@@ -91,8 +91,6 @@ PagedWorld::PagedWorld(const StoreModel& model, const PagedWorldOptions& options
   grafted_image_.assign(top_cells_, 0);
   wanted_flag_ = std::make_unique<std::atomic<uint8_t>[]>(top_cells_);
   for (size_t c = 0; c < top_cells_; ++c) wanted_flag_[c].store(0, std::memory_order_relaxed);
-  stand_in_node_.assign(top_cells_, -1);
-  stand_in_detail_.assign(top_cells_, 0);
 
   // The world's arrays never hold more than the decoded share: reserve what each could reach
   // within it once (address space only: untouched pages cost no memory), so that growing never
@@ -216,12 +214,6 @@ bool PagedWorld::hopeless(uint32_t cell) const {
 // Where one decoded (or not decoded) cell goes: grafted, back to the wanted list, failed, or
 // dropped for lack of room.
 void PagedWorld::place(Decoded& d, bool evict, SyncPass& pass) {
-  // The page replaces its stand-in (whether or not it fits: a cell that does not fit is
-  // wanted again from the next frame, and gets a stand-in again then).
-  if (!d.retry && !d.skipped && stand_in_node_[d.cell] >= 0) {
-    unlink_stand_in(d.cell);
-    pass.changed = true;
-  }
   if (d.retry) {
     pass.later.push_back(d.cell);
   } else if (d.skipped) {
@@ -459,6 +451,7 @@ std::vector<uint32_t> PagedWorld::image_cells(const CellMarks& marks) const {
 
 uint64_t PagedWorld::end_frame(const CellMarks& marks) {
   note_touched(marks);
+  if (!proxy_.empty()) note_drawn(marks);
   touched_bytes_ = lru_.touched_bytes();
   const std::vector<uint32_t> cells = image_cells(CellMarks());
   working_set_bytes_ = 0;
@@ -585,7 +578,7 @@ void PagedWorld::compact() {
       slide(scene_.triangle_normals, g.kind0[0], kind_at[0], g.kinds[0]);
     }
     if (g.stand_in) {
-      for (const uint32_t c : proxy_[g.cell].linked) tree_.nodes_[leaf_node_[c]].child = node_at;
+      if (proxy_[g.cell].link != kLinkNone) tree_.nodes_[g.cell].child = node_at;
     } else {
       tree_.nodes_[leaf_node_[g.cell]].child = node_at;
     }

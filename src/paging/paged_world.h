@@ -30,20 +30,28 @@
 // one image counts as re-read (PagingCounters::cells_reread).
 //
 // Stand-ins (DESIGN.md "proxy at every interior node"; the store's `proxies` section). When the
-// store has proxies, a top cell may be drawn by a STAND-IN instead of its page: the triangles of
-// an ancestor node's proxy that overlap the cell's region, refined and grafted like a page (a hit
-// counts only inside the cell's region, as for every cell). Two reasons, set per frame by
-// set_detail():
-//   detail   the ancestor's error bound projects to less than `pixel_error` pixels at the point
-//            of the ancestor's region nearest the eye: the cell's page is not wanted at all (the
-//            highest such ancestor with a resident proxy draws it);
-//   missing  frames that may show what they have (a time or sample budget, no sync paging):
-//            the cell's page is wanted and on its way, and the deepest resident ancestor proxy
-//            draws it until it arrives (then the page replaces it) — never nothing.
+// store has proxies, an interior node of the top tree may be drawn by its PROXY instead of what
+// lies below it: the node becomes a link to a subtree built over the proxy's triangles in the
+// node's region (once per proxy), so every ray that reaches the region goes through the proxy
+// until it leaves the node. A whole node, never part of one: meshoptimizer kept the proxy's
+// borders, so it meets its neighbours' surfaces (pages or proxies) without cracks, while a
+// proxy beside a page inside one node would leave a step rays fall through. Two reasons, set
+// per frame by set_detail():
+//   detail   the node's error bound projects to less than `pixel_error` pixels at the point of
+//            its region nearest the eye: the pages below are not wanted (the highest such node
+//            with a resident proxy is linked);
+//   missing  frames that may show what they have (a time or sample budget, no sync paging): a
+//            wanted cell's deepest ancestor with a resident proxy is linked until it can be
+//            drawn finer — never nothing. At each frame's start a linked node its rays reached
+//            is refined (refine()): its children's proxies are requested, the pages of a node
+//            of a few cells wanted, and once both children can be drawn without it (a page, a
+//            proxy, or both of their children so) it is replaced by them. Linked nodes no ray
+//            reached in the last image are unlinked.
 // The root's proxy is read when the world opens; other proxies are requested (through the page
-// cache) for the ancestors of every wanted cell and decoded in sync(). Decoded proxies and
-// stand-ins are charged to the decoded share like cells. With pixel_error 0 and no missing
-// stand-ins (sync paging, or frames run to completion) nothing stands in: the exact renderer.
+// cache) one level at a time and decoded in sync(). Decoded proxies and their subtrees are
+// charged to the decoded share (at most a sixteenth of it, least recently used dropped first).
+// With pixel_error 0 and no missing stand-ins (sync paging, or frames run to completion)
+// nothing stands in: the exact renderer.
 //
 // Decoding ahead. A decoder thread takes wanted cells whose pages have arrived, the one that
 // spans the most pixels from the current eye first (cell size over distance), decodes and
@@ -191,8 +199,10 @@ class PagedWorld final : public CellGate {
   // World primitive `p` belongs to a stand-in (now or when it was confirmed: unlinked stand-ins'
   // primitives keep their flag until compact()).
   bool stand_in_prim(uint32_t p) const { return p < stand_in_prim_.size() && stand_in_prim_[p] != 0; }
-  // Store cell `c` is drawn by a stand-in now.
-  bool stood_in(uint32_t c) const { return stand_in_node_[c] >= 0; }
+  // Store cell `c` is drawn by an ancestor's proxy now.
+  bool stood_in(uint32_t c) const { return !proxy_.empty() && link_above(leaf_node_[c]) >= 0; }
+  // Top nodes drawn by their proxies now.
+  const std::vector<uint32_t>& linked_nodes() const { return linked_nodes_; }
   // Stand-ins replaced by their pages (or by a finer proxy) so far: an image that showed
   // stand-ins is out of date once this grows.
   uint64_t stand_ins_replaced() const { return stand_ins_replaced_; }
@@ -274,20 +284,37 @@ class PagedWorld final : public CellGate {
   // Decodes the proxies whose pages arrived; true when one did.
   bool load_proxies(std::chrono::steady_clock::time_point deadline);
   void drop_proxies_over_budget();
-  // Cells drawn for detail leave the wanted list with a stand-in; in frames that stand in for
-  // missing cells, the wanted cells still waiting get (or improve) one. True when the tree changed.
+  // Wanted cells get the node that draws them linked: for detail (they leave the wanted list),
+  // or, in frames that stand in for missing cells, while their pages are missing. True when the
+  // tree changed.
   bool stand_in_wanted(std::chrono::steady_clock::time_point deadline);
-  bool graft_stand_in(uint32_t cell, int32_t node, bool detail);
+  static constexpr uint8_t kLinkNone = 0, kLinkDetail = 1, kLinkMissing = 2;
+  // Links top node `node` to its proxy's subtree (grafting it once) for reason `why`, unlinking
+  // linked nodes below it. False when nothing changed (already linked, or no room).
+  bool link_node(uint32_t node, uint8_t why);
+  void unlink_node(uint32_t node);
+  // The linked node at or above top node `node` (-1: none).
+  int32_t link_above(uint32_t node) const;
+  // Every cell under `node` is resident, failed or empty.
+  bool complete_below(uint32_t node) const;
+  // `node` can be drawn without its ancestors' proxies (see "Stand-ins").
+  bool drawable(uint32_t node) const;
+  void link_children(uint32_t node);
+  void refine(uint32_t node);
+  // Subtrees of at most this many cells have their pages wanted when their node is linked for
+  // missing pages (rays never reach them while it is).
+  static constexpr uint32_t kRefineCells = 8;
+  // Records which linked nodes the image's rays reached (end_frame()).
+  void note_drawn(const CellMarks& marks);
   // Grafts node `node`'s proxy as a subtree over its region (once); false when it does not fit.
   bool graft_proxy(uint32_t node);
   std::array<int32_t, 6> node_ropes(uint32_t node) const;
   // Appends the store cells under top node `node` whose regions overlap `box`.
   void cells_under(uint32_t node, const Aabb& box, std::vector<uint32_t>& out) const;
   void drop_proxy(uint32_t node);
-  // Unlinks the cells drawn by node's proxy and removes its subtree (the decoded proxy stays).
+  // Unlinks the node and removes its proxy's subtree (the decoded proxy stays).
   void release_proxy_graft(uint32_t node);
   void release_proxy_grafts();
-  void unlink_stand_in(uint32_t cell);
   void review_stand_ins();
 
   const StoreModel& model_;
@@ -321,9 +348,9 @@ class PagedWorld final : public CellGate {
   // Stand-ins.
   std::vector<ProxySlot> proxy_;         // per top node; empty when the store has no proxies
   std::vector<int32_t> parent_;          // per top node (-1: the root)
-  std::vector<int32_t> stand_in_node_;   // store cell -> node whose proxy draws it, or -1
-  std::vector<uint8_t> stand_in_detail_; // store cell: its stand-in is there for detail
-  std::vector<uint32_t> stand_in_cells_; // store cells with a stand-in (may hold stale entries)
+  std::vector<uint32_t> subtree_end_;    // per top node: one past its subtree (preorder)
+  std::vector<uint32_t> leaves_under_;   // per top node: cells in its subtree
+  std::vector<uint32_t> linked_nodes_;   // top nodes that are links to their proxies now
   std::vector<uint8_t> stand_in_prim_;   // world primitive -> belongs to a stand-in
   std::vector<uint32_t> proxy_wanted_;   // nodes whose proxy pages were requested, not decoded
   uint64_t proxy_bytes_ = 0;

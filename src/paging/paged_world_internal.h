@@ -47,8 +47,10 @@ struct PagedWorld::ProxySlot {
   std::vector<Aabb> bounds;  // per triangle
   uint64_t bytes = 0;
   uint64_t used = 0;         // proxy_use_ stamp of the last stand-in made from it
-  int32_t graft = -1;        // its subtree's index in live_ once a cell links to it (-1: none)
-  std::vector<uint32_t> linked;  // store cells whose top leaves link to that subtree
+  int32_t graft = -1;        // its subtree's index in live_ once grafted (-1: none)
+  uint8_t link = 0;          // kLinkNone, or why the top node is a link to that subtree now
+  bool drawn = false;        // linked, and its subtree was reached by the last image's rays
+  KdTree::Node saved;        // the top node as the store has it, while linked
 };
 
 // The decoder thread's shared state (paged_world_decoder.cpp). Lock order: wanted_mutex_, then

@@ -39,6 +39,18 @@ void PagedWorld::open_proxies() {
     parent_[n + 1] = static_cast<int32_t>(n);                    // lower child follows its parent
     parent_[nodes[n].child] = static_cast<int32_t>(n);           // upper child
   }
+  // Preorder: a node's subtree is the nodes from it to subtree_end_ (exclusive).
+  subtree_end_.assign(nodes.size(), 0);
+  leaves_under_.assign(nodes.size(), 0);
+  for (size_t n = nodes.size(); n-- > 0;) {
+    if (nodes[n].is_leaf()) {
+      subtree_end_[n] = uint32_t(n + 1);
+      leaves_under_[n] = 1;
+    } else {
+      subtree_end_[n] = subtree_end_[nodes[n].child];
+      leaves_under_[n] = leaves_under_[n + 1] + leaves_under_[nodes[n].child];
+    }
+  }
   stand_in_prim_.reserve(scene_.prims.capacity());
   // The root's proxy is there from the first frame: read now, through the cache.
   if (model_.proxy(0) != nullptr) {
@@ -211,45 +223,119 @@ bool PagedWorld::graft_proxy(uint32_t node) {
   return true;
 }
 
-bool PagedWorld::graft_stand_in(uint32_t cell, int32_t node, bool detail) {
-  ProxySlot& slot = proxy_[size_t(node)];
-  if (stand_in_node_[cell] >= 0) unlink_stand_in(cell);
-  if (!graft_proxy(uint32_t(node))) return false;
-  // The cell's top leaf links to the proxy's subtree, which covers the whole node's region: a ray
-  // entering the cell goes on through the proxy until it leaves the node.
-  KdTree::Node& leaf = tree_.nodes_[leaf_node_[cell]];
-  leaf.axis_or_leaf = 4;
-  leaf.child = live_[size_t(slot.graft)].node0;
-  missing_[cell] = 0;
-  stand_in_node_[cell] = node;
-  stand_in_detail_[cell] = detail ? 1 : 0;
-  stand_in_cells_.push_back(cell);
-  slot.linked.push_back(cell);
+int32_t PagedWorld::link_above(uint32_t node) const {
+  for (int32_t n = int32_t(node); n >= 0; n = parent_[size_t(n)]) {
+    if (proxy_[size_t(n)].link != kLinkNone) return n;
+  }
+  return -1;
+}
+
+bool PagedWorld::link_node(uint32_t node, uint8_t why) {
+  ProxySlot& slot = proxy_[node];
+  if (slot.link != kLinkNone) {
+    slot.link = why;
+    return false;
+  }
+  if (!graft_proxy(node)) return false;
+  // What was linked below is inside the node's region: the node's proxy draws it now.
+  for (size_t k = 0; k < linked_nodes_.size();) {
+    const uint32_t n = linked_nodes_[k];
+    if (n > node && n < subtree_end_[node]) {
+      unlink_node(n);
+    } else {
+      ++k;
+    }
+  }
+  // The node becomes a link to its proxy's subtree, which covers the node's region: a ray that
+  // reaches any part of it goes through the proxy until it leaves the node, and the proxy's
+  // locked borders meet the neighbours' surfaces (no crack between a proxy and a page).
+  KdTree::Node& n = tree_.nodes_[node];
+  slot.saved = n;
+  n.axis_or_leaf = 4;
+  n.child = live_[size_t(slot.graft)].node0;
+  slot.link = why;
   slot.used = ++proxy_use_;
+  linked_nodes_.push_back(node);
   ++counters_.stand_ins;
   return true;
 }
 
-void PagedWorld::unlink_stand_in(uint32_t cell) {
-  const int32_t node = stand_in_node_[cell];
-  if (node < 0) return;
-  KdTree::Node& leaf = tree_.nodes_[leaf_node_[cell]];
-  leaf.axis_or_leaf = 3;
-  leaf.child = cell;
-  missing_[cell] = 1;
-  // A cell drawn for detail was taken off the wanted list: it may be wanted again. One drawn
-  // while missing is still on it.
-  if (stand_in_detail_[cell]) wanted_flag_[cell].store(0, std::memory_order_release);
-  stand_in_node_[cell] = -1;
-  stand_in_detail_[cell] = 0;
-  std::vector<uint32_t>& linked = proxy_[size_t(node)].linked;
-  linked.erase(std::find(linked.begin(), linked.end(), cell));
+void PagedWorld::unlink_node(uint32_t node) {
+  ProxySlot& slot = proxy_[node];
+  if (slot.link == kLinkNone) return;
+  tree_.nodes_[node] = slot.saved;
+  slot.link = kLinkNone;
+  std::erase(linked_nodes_, node);
   ++stand_ins_replaced_;
+}
+
+bool PagedWorld::complete_below(uint32_t node) const {
+  const auto& nodes = model_.nodes();
+  for (uint32_t n = node; n < subtree_end_[node]; ++n) {
+    if (!nodes[n].is_leaf()) continue;
+    const uint32_t c = nodes[n].child;
+    if (model_.cells()[c].page != StoreCell::kNoPage && slot_[c] < 0 && failed_[c] == 0) return false;
+  }
+  return true;
+}
+
+bool PagedWorld::drawable(uint32_t node) const {
+  const auto& nodes = model_.nodes();
+  if (nodes[node].is_leaf()) {
+    const uint32_t c = nodes[node].child;
+    return model_.cells()[c].page == StoreCell::kNoPage || slot_[c] >= 0 || failed_[c] != 0;
+  }
+  return proxy_[node].resident || (drawable(node + 1) && drawable(nodes[node].child));
+}
+
+void PagedWorld::link_children(uint32_t node) {
+  const auto& nodes = model_.nodes();
+  for (const uint32_t x : {node + 1, nodes[node].child}) {
+    if (nodes[x].is_leaf() || complete_below(x)) continue;
+    if (proxy_[x].resident && link_node(x, kLinkMissing)) continue;
+    link_children(x);
+  }
+}
+
+void PagedWorld::refine(uint32_t node) {
+  const auto& nodes = model_.nodes();
+  // Coarse to fine: the proxies of its children and grandchildren (two levels a round trip),
+  // and the pages of a subtree of a few cells.
+  const auto request = [&](uint32_t x) {
+    ProxySlot& slot = proxy_[x];
+    if (nodes[x].is_leaf() || slot.resident || slot.requested || slot.failed || model_.proxy(x) == nullptr) return;
+    std::lock_guard<std::mutex> lock(wanted_mutex_);
+    slot.requested = true;
+    proxy_wanted_.push_back(x);
+    cache_->request(model_.proxy(x)->page);
+  };
+  for (const uint32_t x : {node + 1, nodes[node].child}) {
+    request(x);
+    if (!nodes[x].is_leaf()) {
+      request(x + 1);
+      request(nodes[x].child);
+    }
+  }
+  if (leaves_under_[node] <= kRefineCells) {
+    for (uint32_t n = node; n < subtree_end_[node]; ++n) {
+      if (!nodes[n].is_leaf()) continue;
+      const uint32_t c = nodes[n].child;
+      if (model_.cells()[c].page == StoreCell::kNoPage || slot_[c] >= 0 || failed_[c] != 0) continue;
+      if (wanted_flag_[c].exchange(1, std::memory_order_acq_rel) != 0) continue;
+      std::lock_guard<std::mutex> lock(wanted_mutex_);
+      wanted_.push_back(c);
+      cache_->request(model_.cells()[c].page);
+    }
+  }
+  if (drawable(node + 1) && drawable(nodes[node].child)) {
+    unlink_node(node);
+    link_children(node);
+  }
 }
 
 void PagedWorld::release_proxy_graft(uint32_t node) {
   ProxySlot& slot = proxy_[node];
-  while (!slot.linked.empty()) unlink_stand_in(slot.linked.back());
+  unlink_node(node);
   if (slot.graft < 0) return;
   const uint64_t bytes = live_[size_t(slot.graft)].bytes;
   remove_graft(slot.graft);
@@ -260,7 +346,7 @@ void PagedWorld::release_proxy_graft(uint32_t node) {
 
 void PagedWorld::release_proxy_grafts() {
   for (size_t n = 0; n < proxy_.size(); ++n) {
-    if (proxy_[n].graft >= 0 || !proxy_[n].linked.empty()) release_proxy_graft(uint32_t(n));
+    if (proxy_[n].graft >= 0 || proxy_[n].link != kLinkNone) release_proxy_graft(uint32_t(n));
   }
 }
 
@@ -271,6 +357,7 @@ void PagedWorld::drop_proxy(uint32_t node) {
 }
 
 bool PagedWorld::stand_in_wanted(std::chrono::steady_clock::time_point deadline) {
+  (void)deadline;
   std::vector<uint32_t> wanted;
   {
     std::lock_guard<std::mutex> lock(wanted_mutex_);
@@ -280,27 +367,30 @@ bool PagedWorld::stand_in_wanted(std::chrono::steady_clock::time_point deadline)
   std::vector<uint32_t> detail_done;
   for (const uint32_t c : wanted) {
     if (slot_[c] >= 0) continue;  // its page is grafted
-    if (stand_in_detail_[c] && detail_ok(stand_in_node_[c])) {
-      detail_done.push_back(c);
+    const int32_t above = link_above(leaf_node_[c]);
+    if (above >= 0) {
+      // Drawn by a linked node's proxy already (linked after the cell was wanted): for detail,
+      // the page is not wanted; while pages are missing, it still is.
+      if (proxy_[size_t(above)].link == kLinkDetail) detail_done.push_back(c);
       continue;
     }
     const int32_t detail = detail_node(c);
     if (detail >= 0) {
-      changed |= graft_stand_in(c, detail, true);
-      if (stand_in_node_[c] == detail) detail_done.push_back(c);
+      changed |= link_node(uint32_t(detail), kLinkDetail);
+      if (link_above(leaf_node_[c]) >= 0) detail_done.push_back(c);
       continue;
     }
     // A missing cell is drawn by the finest proxy there is until its page arrives.
     if (!stand_in_missing_) continue;
     const int32_t nearest = nearest_proxy(c);
-    if (nearest < 0 || nearest == stand_in_node_[c]) continue;
-    changed |= graft_stand_in(c, nearest, false);
+    if (nearest >= 0) changed |= link_node(uint32_t(nearest), kLinkMissing);
   }
   if (!detail_done.empty()) {
-    // Drawn for detail: not wanted any more (the flag stays set until the stand-in goes).
+    // Drawn for detail: not wanted any more; wanted again when the link goes and a ray reaches it.
     std::sort(detail_done.begin(), detail_done.end());
     std::lock_guard<std::mutex> lock(wanted_mutex_);
     std::erase_if(wanted_, [&](uint32_t c) { return std::binary_search(detail_done.begin(), detail_done.end(), c); });
+    for (const uint32_t c : detail_done) wanted_flag_[c].store(0, std::memory_order_release);
   }
   return changed;
 }
@@ -316,25 +406,36 @@ void PagedWorld::set_detail(const View& view, double pixel_error, bool stand_in_
   }
 }
 
-void PagedWorld::review_stand_ins() {
-  std::vector<uint32_t> kept;
-  std::vector<uint8_t> seen(top_cells_, 0);
-  for (const uint32_t c : stand_in_cells_) {
-    if (stand_in_node_[c] < 0 || seen[c]) continue;
-    seen[c] = 1;
-    // A detail stand-in stays while its proxy is still fine enough from here; one for a missing
-    // cell while frames may show stand-ins and the page is still wanted (its page stays on the
-    // wanted list either way).
-    const bool keep = stand_in_detail_[c] != 0
-                          ? pixel_error_ > 0.0 && detail_ok(stand_in_node_[c])
-                          : stand_in_missing_ && wanted_flag_[c].load(std::memory_order_acquire) != 0;
-    if (keep) {
-      kept.push_back(c);
-    } else {
-      unlink_stand_in(c);  // missing: the next frame that reaches it wants it (again)
-    }
+void PagedWorld::note_drawn(const CellMarks& marks) {
+  for (const uint32_t n : linked_nodes_) {
+    const ProxySlot& slot = proxy_[n];
+    const Graft& g = live_[size_t(slot.graft)];
+    bool drew = false;
+    for (uint32_t wc = g.cell0; wc < g.cell0 + g.cells && wc < marks.size() && !drew; ++wc) drew = marks.marked(int32_t(wc));
+    proxy_[n].drawn = drew;
   }
-  stand_in_cells_.swap(kept);
+}
+
+void PagedWorld::review_stand_ins() {
+  const std::vector<uint32_t> linked = linked_nodes_;
+  for (const uint32_t n : linked) {
+    ProxySlot& slot = proxy_[n];
+    if (slot.link == kLinkNone) continue;  // unlinked by an ancestor's refinement meanwhile
+    if (!slot.drawn) {
+      // Out of view: a ray that reaches it later wants its cells again (and links it again).
+      unlink_node(n);
+      continue;
+    }
+    if (pixel_error_ > 0.0 && detail_ok(int32_t(n))) {
+      slot.link = kLinkDetail;  // fine enough from here: stays, whatever is missing below
+      continue;
+    }
+    if (slot.link == kLinkDetail || !stand_in_missing_) {
+      unlink_node(n);
+      continue;
+    }
+    refine(n);
+  }
 }
 
 void PagedWorld::cells_under(uint32_t node, const Aabb& box, std::vector<uint32_t>& out) const {
@@ -356,35 +457,34 @@ void PagedWorld::cells_under(uint32_t node, const Aabb& box, std::vector<uint32_
 }
 
 StandInReport PagedWorld::stand_in_report(const CellMarks& marks) const {
-  // Rays that reach a stood-in cell go on in its proxy's subtree, whose world cells have no store
-  // owner: what a proxy drew is read from its marked world cells, and the stood-in cells it drew
-  // for are the linked ones under those cells.
+  // Rays that reach a linked node go on in its proxy's subtree, whose world cells have no store
+  // owner: what a proxy drew is read from its marked world cells, and the store cells it drew
+  // for are those under them.
   StandInReport r;
   std::vector<uint8_t> counted(top_cells_, 0);
   std::vector<uint32_t> under;
-  for (size_t n = 0; n < proxy_.size(); ++n) {
+  for (const uint32_t n : linked_nodes_) {
     const ProxySlot& slot = proxy_[n];
-    if (slot.graft < 0) continue;
     const Graft& g = live_[size_t(slot.graft)];
-    bool drew = false, for_missing = false;
+    bool drew = false;
     for (uint32_t wc = g.cell0; wc < g.cell0 + g.cells && wc < marks.size(); ++wc) {
       if (!marks.marked(int32_t(wc))) continue;
       drew = true;
       under.clear();
-      cells_under(uint32_t(n), tree_.cells()[wc].bounds, under);
+      cells_under(n, tree_.cells()[wc].bounds, under);
       for (const uint32_t c : under) {
-        if (counted[c] || stand_in_node_[c] != int32_t(n)) continue;
+        if (counted[c] || model_.cells()[c].page == StoreCell::kNoPage) continue;
         counted[c] = 1;
-        if (stand_in_detail_[c]) {
+        if (slot.link == kLinkDetail) {
           ++r.detail_cells;
-        } else {
+        } else if (slot_[c] < 0) {
           ++r.missing_cells;
-          for_missing = true;
         }
       }
     }
-    if (drew) ++r.proxy_nodes;
-    if (for_missing) ++r.missing_nodes;
+    if (!drew) continue;
+    ++r.proxy_nodes;
+    if (slot.link == kLinkMissing) ++r.missing_nodes;
   }
   return r;
 }
