@@ -11,8 +11,10 @@
 #include "tests/test_files.h"
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <filesystem>
+#include <fstream>
 
 namespace frontier {
 namespace {
@@ -100,7 +102,7 @@ size_t holes(const std::vector<uint32_t>& reference, const std::vector<uint32_t>
 
 // Pixel error 0, paging as frames need it or synchronously: the exact image, equal to brute
 // force over the input and to the store without proxies; nothing stood in.
-TEST(StandIn, ExactModesShowNoProxyAndEqualBruteForce) {
+TEST(WalkthroughStandIn, ExactModesShowNoProxyAndEqualBruteForce) {
   Scene scene;
   ASSERT_TRUE(load_scene(terrain().model, scene).is_ok());
   for (const bool sync : {false, true}) {
@@ -131,7 +133,7 @@ TEST(StandIn, ExactModesShowNoProxyAndEqualBruteForce) {
 
 // A pixel error no proxy exceeds: the root's proxy, read when the store opens, draws every
 // cell; no cell page is read, every sample is on a proxy, and the frame is complete.
-TEST(StandIn, AHugePixelErrorDrawsTheRootProxyAndReadsNoCellPage) {
+TEST(WalkthroughStandIn, AHugePixelErrorDrawsTheRootProxyAndReadsNoCellPage) {
   auto walk = Walkthrough::open(terrain().proxies, options(1e12));
   ASSERT_TRUE(walk.is_ok());
   for (const Camera& cam : orbit()) {
@@ -151,7 +153,7 @@ TEST(StandIn, AHugePixelErrorDrawsTheRootProxyAndReadsNoCellPage) {
 
 // A camera that stops after a frame drawn by proxies refines to the exact image: the next frame
 // of the same camera renders at pixel error 0, equal to brute force, with no proxy pixel left.
-TEST(StandIn, AStillCameraRefinesToTheExactImage) {
+TEST(WalkthroughStandIn, AStillCameraRefinesToTheExactImage) {
   Scene scene;
   ASSERT_TRUE(load_scene(terrain().model, scene).is_ok());
   auto walk = Walkthrough::open(terrain().proxies, options(1e12));
@@ -179,7 +181,7 @@ TEST(StandIn, AStillCameraRefinesToTheExactImage) {
 // Budgeted frames (a sample budget larger than the image: each frame ends when its image is
 // complete, pages or not) show geometry wherever the exact frame has it: missing cells are
 // drawn by their ancestors' proxies, never by nothing; whatever stood in is counted.
-TEST(StandIn, BudgetedFramesHaveNoHolesWhereTheExactFrameHasGeometry) {
+TEST(WalkthroughStandIn, BudgetedFramesHaveNoHolesWhereTheExactFrameHasGeometry) {
   WalkOptions o = options(1.0);
   o.budget.samples = 1u << 30;
   auto walk = Walkthrough::open(terrain().proxies, o);
@@ -206,6 +208,56 @@ TEST(StandIn, BudgetedFramesHaveNoHolesWhereTheExactFrameHasGeometry) {
       EXPECT_GT(r.proxy_nodes, 0u);
     }
     EXPECT_LE(r.resident_bytes, r.cache_budget);
+  }
+}
+
+// The command line: frontier-view's report has the stand-in fields per frame and, in its summary,
+// the first complete frame and the frame time up to it (the sum of the frames' times); the
+// stderr line names it too. With --sync-paging (pixel error 0 by default) nothing stands in.
+TEST(WalkthroughStandIn, TheReportNamesTheFirstCompleteFrame) {
+  for (const bool sync : {false, true}) {
+    SCOPED_TRACE(sync);
+    const std::string report = (scratch() / (sync ? "sync.jsonl" : "pegged.jsonl")).string();
+    std::vector<std::string> args = {terrain().proxies, "--headless", "--path", terrain().path, "--size", "64x48",
+                                     "--report", report, "--threads", "2"};
+    if (sync) {
+      args.push_back("--sync-paging");
+    } else {
+      args.insert(args.end(), {"--frame-ms", "200"});
+    }
+    const auto r = run_binary(FRONTIER_VIEW_PATH, args, scratch());
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    std::ifstream in(report);
+    std::string line;
+    std::vector<nlohmann::json> frames;
+    nlohmann::json summary;
+    while (std::getline(in, line)) {
+      auto j = nlohmann::json::parse(line);
+      if (j.contains("summary")) {
+        summary = j["summary"];
+      } else {
+        frames.push_back(std::move(j));
+      }
+    }
+    ASSERT_EQ(frames.size(), 4u);
+    int64_t first = -1;
+    double ms = 0.0, ms_to_first = 0.0;
+    for (size_t f = 0; f < frames.size(); ++f) {
+      const nlohmann::json& j = frames[f];
+      EXPECT_EQ(j.at("pixel_error").get<double>(), sync ? 0.0 : 1.0);
+      if (sync) {
+        EXPECT_EQ(j.at("proxy_pixels").get<uint64_t>(), 0u);
+      }
+      ms += j.at("frame_ms").get<double>();
+      if (first < 0 && j.at("complete").get<bool>()) {
+        first = int64_t(f);
+        ms_to_first = ms;
+      }
+    }
+    ASSERT_GE(first, 0) << "64x48 frames of 200 ms complete, from proxies if not from pages";
+    EXPECT_EQ(summary.at("first_complete_frame").get<int64_t>(), first);
+    EXPECT_NEAR(summary.at("ms_to_first_complete").get<double>(), ms_to_first, 1e-6 * ms_to_first + 1e-9);
+    EXPECT_NE(r.err.find("(the first: frame " + std::to_string(first)), std::string::npos) << r.err;
   }
 }
 

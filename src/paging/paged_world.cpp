@@ -187,13 +187,17 @@ bool PagedWorld::evict_for(uint64_t bytes, const std::vector<uint32_t>& keep) {
   return true;
 }
 
-std::vector<uint32_t> PagedWorld::take_ready() {
+std::vector<uint32_t> PagedWorld::take_ready(bool take) {
   std::vector<uint32_t> ready;
   std::lock_guard<std::mutex> lock(wanted_mutex_);
   std::vector<uint32_t> waiting;
   for (const uint32_t c : wanted_) {
     const uint64_t page = model_.cells()[c].page;
     if (cache_->ready(page) || cache_->failed(page)) {
+      if (!take) {
+        waiting.push_back(c);
+        continue;
+      }
       ready.push_back(c);
     } else {
       cache_->request(page);  // no-op while queued or loading; again if it was evicted unread
@@ -271,7 +275,9 @@ bool PagedWorld::sync_impl(std::chrono::steady_clock::time_point deadline, bool 
     pass.later.clear();
   }
   if (!proxy_.empty() && stand_in_wanted(deadline)) pass.changed = true;
-  const std::vector<uint32_t> ready = take_ready();
+  // In frames that stand in for missing cells, the decoder thread decodes alone: the frame's
+  // thread only grafts (a stand-in covers what is not in yet).
+  const std::vector<uint32_t> ready = take_ready(!stand_in_missing_);
   const size_t batch = std::max<size_t>(4, 2 * static_cast<size_t>(tbb::info::default_concurrency()));
   for (size_t b = 0; b < ready.size(); b += batch) {
     if (pass.full || std::chrono::steady_clock::now() >= deadline) {
@@ -319,13 +325,16 @@ double PagedWorld::wait_for_pages(std::chrono::steady_clock::time_point deadline
         if (!decoder_->done.empty()) break;
         if (wanted_.empty() && decoder_->in_flight == 0) break;
       }
+      // A page in the cache is news only to a sync() that decodes (not in frames that stand in
+      // for missing cells: the decoder takes it); so is a proxy page.
       bool any = false;
-      for (const uint32_t c : wanted_) {
-        const uint64_t page = model_.cells()[c].page;
-        if (cache_->ready(page) || cache_->failed(page)) {
-          any = true;
-          break;
-        }
+      for (size_t k = 0; k < wanted_.size() && !stand_in_missing_ && !any; ++k) {
+        const uint64_t page = model_.cells()[wanted_[k]].page;
+        any = cache_->ready(page) || cache_->failed(page);
+      }
+      for (size_t k = 0; k < proxy_wanted_.size() && !any; ++k) {
+        const uint64_t page = model_.proxy(proxy_wanted_[k])->page;
+        any = cache_->ready(page) || cache_->failed(page);
       }
       if (any) break;
     }

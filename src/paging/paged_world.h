@@ -234,7 +234,9 @@ class PagedWorld final : public CellGate {
   struct DecoderState;
   void decode(uint32_t cell, Decoded& out) const;
   bool sync_impl(std::chrono::steady_clock::time_point deadline, bool evict);
-  std::vector<uint32_t> take_ready();
+  // Takes the wanted cells whose pages arrived (or failed) off the list (`take`; else leaves
+  // them) and asks again for the pages of the others (no-op while queued or loading).
+  std::vector<uint32_t> take_ready(bool take = true);
   bool hopeless(uint32_t cell) const;
   void place(Decoded& d, bool evict, SyncPass& pass);
   // Unlinks live cells other than `keep` (LRU first) and compacts until `bytes` more fit.

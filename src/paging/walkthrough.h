@@ -45,6 +45,7 @@
 
 #include <nlohmann/json_fwd.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdint>
 #include <memory>
@@ -186,6 +187,9 @@ class Walkthrough {
   // Changes the per-frame budget (pegging time or samples, paper §5.5) for the next frames.
   void set_budget(const FrameBudget& budget) { options_.budget = budget; }
   const FrameBudget& budget() const { return options_.budget; }
+  // Changes the pixel error (WalkOptions::pixel_error) from the next moving frame on.
+  void set_pixel_error(double pixel_error) { options_.pixel_error = std::max(0.0, pixel_error); }
+  double pixel_error() const { return options_.pixel_error; }
 
   const StoreModel& model() const { return *model_; }
   const PagedWorld& world() const { return *world_; }
