@@ -251,7 +251,7 @@ void PagedWorld::place(Decoded& d, bool evict, SyncPass& pass) {
 bool PagedWorld::sync_impl(std::chrono::steady_clock::time_point deadline, bool evict) {
   const auto start = std::chrono::steady_clock::now();
   SyncPass pass;
-  if (!proxy_.empty()) pass.changed = load_proxies(deadline);
+  if (!proxy_.empty() && load_proxies(deadline)) pass.changed = refine_arrived() || pass.changed;
   // What the decoder finished, then stand-ins for what is still missing, then what is ready
   // and not taken by the decoder, decoded here until the deadline.
   std::vector<Decoded> ahead = take_decoded();

@@ -303,6 +303,8 @@ class PagedWorld final : public CellGate {
   bool drawable(uint32_t node) const;
   void link_children(uint32_t node);
   void refine(uint32_t node);
+  // Replaces linked nodes whose children can be drawn now (proxies that arrived). True when it did.
+  bool refine_arrived();
   // Subtrees of at most this many cells have their pages wanted when their node is linked for
   // missing pages (rays never reach them while it is).
   static constexpr uint32_t kRefineCells = 8;

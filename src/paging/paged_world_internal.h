@@ -49,6 +49,7 @@ struct PagedWorld::ProxySlot {
   uint64_t used = 0;         // proxy_use_ stamp of the last stand-in made from it
   int32_t graft = -1;        // its subtree's index in live_ once grafted (-1: none)
   uint8_t link = 0;          // kLinkNone, or why the top node is a link to that subtree now
+  uint8_t last_link = 0;     // why it was linked last (the report, after it gave way)
   bool drawn = false;        // linked, and its subtree was reached by the last image's rays
   KdTree::Node saved;        // the top node as the store has it, while linked
 };

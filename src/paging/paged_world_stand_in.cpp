@@ -233,7 +233,7 @@ int32_t PagedWorld::link_above(uint32_t node) const {
 bool PagedWorld::link_node(uint32_t node, uint8_t why) {
   ProxySlot& slot = proxy_[node];
   if (slot.link != kLinkNone) {
-    slot.link = why;
+    slot.link = slot.last_link = why;
     return false;
   }
   if (!graft_proxy(node)) return false;
@@ -254,6 +254,7 @@ bool PagedWorld::link_node(uint32_t node, uint8_t why) {
   n.axis_or_leaf = 4;
   n.child = live_[size_t(slot.graft)].node0;
   slot.link = why;
+  slot.last_link = why;
   slot.used = ++proxy_use_;
   linked_nodes_.push_back(node);
   ++counters_.stand_ins;
@@ -406,6 +407,23 @@ void PagedWorld::set_detail(const View& view, double pixel_error, bool stand_in_
   }
 }
 
+bool PagedWorld::refine_arrived() {
+  // Linked nodes (for missing pages) whose children can now be drawn without them give way at
+  // once, within the frame: the rays still to come see the finer proxies.
+  bool changed = false;
+  const std::vector<uint32_t> linked = linked_nodes_;
+  for (const uint32_t n : linked) {
+    if (proxy_[n].link != kLinkMissing) continue;
+    const uint32_t upper = model_.nodes()[n].child;
+    if (drawable(n + 1) && drawable(upper)) {
+      unlink_node(n);
+      link_children(n);
+      changed = true;
+    }
+  }
+  return changed;
+}
+
 void PagedWorld::note_drawn(const CellMarks& marks) {
   for (const uint32_t n : linked_nodes_) {
     const ProxySlot& slot = proxy_[n];
@@ -417,6 +435,16 @@ void PagedWorld::note_drawn(const CellMarks& marks) {
 }
 
 void PagedWorld::review_stand_ins() {
+  if (stand_in_missing_ && linked_nodes_.empty() && resident_cells() == 0 && !proxy_.empty() && proxy_[0].resident) {
+    // A cold start (nothing of the model in memory yet, e.g. the first frame): the root's proxy
+    // draws the whole model at once instead of after a round trip of parked rays; it refines
+    // from the next frame on like any linked node.
+    if (link_node(0, kLinkMissing)) {
+      proxy_[0].drawn = true;
+      refine(0);  // asks for the next levels now
+    }
+    return;
+  }
   const std::vector<uint32_t> linked = linked_nodes_;
   for (const uint32_t n : linked) {
     ProxySlot& slot = proxy_[n];
@@ -427,7 +455,7 @@ void PagedWorld::review_stand_ins() {
       continue;
     }
     if (pixel_error_ > 0.0 && detail_ok(int32_t(n))) {
-      slot.link = kLinkDetail;  // fine enough from here: stays, whatever is missing below
+      slot.link = slot.last_link = kLinkDetail;  // fine enough from here: stays, whatever is missing below
       continue;
     }
     if (slot.link == kLinkDetail || !stand_in_missing_) {
@@ -463,8 +491,10 @@ StandInReport PagedWorld::stand_in_report(const CellMarks& marks) const {
   StandInReport r;
   std::vector<uint8_t> counted(top_cells_, 0);
   std::vector<uint32_t> under;
-  for (const uint32_t n : linked_nodes_) {
+  for (uint32_t n = 0; n < proxy_.size(); ++n) {
+    // Every grafted proxy: one linked earlier in the frame may have given way to finer ones since.
     const ProxySlot& slot = proxy_[n];
+    if (slot.graft < 0) continue;
     const Graft& g = live_[size_t(slot.graft)];
     bool drew = false;
     for (uint32_t wc = g.cell0; wc < g.cell0 + g.cells && wc < marks.size(); ++wc) {
@@ -475,7 +505,7 @@ StandInReport PagedWorld::stand_in_report(const CellMarks& marks) const {
       for (const uint32_t c : under) {
         if (counted[c] || model_.cells()[c].page == StoreCell::kNoPage) continue;
         counted[c] = 1;
-        if (slot.link == kLinkDetail) {
+        if (slot.last_link == kLinkDetail) {
           ++r.detail_cells;
         } else if (slot_[c] < 0) {
           ++r.missing_cells;
@@ -484,7 +514,7 @@ StandInReport PagedWorld::stand_in_report(const CellMarks& marks) const {
     }
     if (!drew) continue;
     ++r.proxy_nodes;
-    if (slot.link == kLinkMissing) ++r.missing_nodes;
+    if (slot.last_link == kLinkMissing) ++r.missing_nodes;
   }
   return r;
 }
