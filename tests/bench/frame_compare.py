@@ -2,7 +2,7 @@
 """frame_compare: one walk's frames at several --pixel-error values against the exact frames.
 
     python3 tests/bench/frame_compare.py --exact DIR --run T=DIR [--run T=DIR ...]
-                                         [--label NAME] [--from 2] [--cap 99] [--radius 32]
+                                         [--label NAME] [--from 2] [--cap 99]
                                          [--tsv OUT.tsv] [--markdown OUT.md] [--json OUT.jsonl]
 
 Every DIR is what tests/bench/pixel_error_curve.sh leaves for one run of frontier-view:
@@ -17,9 +17,9 @@ frame indices start at 0), frame by frame against the exact frame of the same in
   coverage  share of the exact frame's geometry pixels (id != 0xFFFFFFFF) where the run's frame
             shows geometry (an unconfirmed pixel of a pegged frame has no id: it counts as none);
   overdraw  pixels with geometry where the exact frame has background, and their distance in
-            pixels to the nearest exact geometry pixel (searched up to --radius; farther ones
-            count as --radius): how far a proxy's silhouette reaches out of the exact one, to set
-            against --pixel-error, the bound the store's proxies are chosen by;
+            pixels to the nearest exact geometry pixel (an exact Euclidean distance transform,
+            Felzenszwalb & Huttenlocher 2012): how far a proxy's silhouette reaches out of the
+            exact one, to set against --pixel-error, the bound the store's proxies are chosen by;
   proxy ids differing ids among geometry pixels over the frame's proxy_pixels (report.jsonl):
             the share of proxy pixels naming another primitive than the exact frame, on the
             assumption that pixels of resident pages name the exact primitive (an upper bound
@@ -175,34 +175,65 @@ def psnr(a, b, cap):
     return min(cap, 10.0 * math.log10(255.0 * 255.0 / mse))
 
 
-def overdraw_distances(exact, run, width, height, radius):
-    """Distances (pixels, Chebyshev rings then Euclidean within the ring found) from every pixel
-    where `run` has geometry and `exact` has none to the nearest exact geometry pixel."""
-    geometry = bytes(i != BACKGROUND for i in exact)
-    out = []
-    for p in range(width * height):
-        if run[p] == BACKGROUND or geometry[p]:
+def _envelope_1d(f, n):
+    """Felzenszwalb & Huttenlocher's 1-D squared distance transform of f (length n)."""
+    INF = float("inf")
+    d = [0.0] * n
+    v = [0] * n
+    z = [0.0] * (n + 1)
+    k = 0
+    start = next((q for q in range(n) if f[q] < INF), None)
+    if start is None:
+        return [INF] * n
+    v[0] = start
+    z[0], z[1] = -INF, INF
+    for q in range(start + 1, n):
+        fq = f[q]
+        if fq == INF:
             continue
-        x0, y0 = p % width, p // width
-        best = None
-        for r in range(1, radius + 1):
-            # Ring r: a hit at Chebyshev distance r is at most r*sqrt(2) away; stop once the ring
-            # cannot hold anything nearer than the best so far.
-            if best is not None and r > best:
-                break
-            for y in range(max(0, y0 - r), min(height, y0 + r + 1)):
-                row = y * width
-                if y in (y0 - r, y0 + r):
-                    xs = range(max(0, x0 - r), min(width, x0 + r + 1))
-                else:
-                    xs = [x for x in (x0 - r, x0 + r) if 0 <= x < width]
-                for x in xs:
-                    if geometry[row + x]:
-                        d = math.hypot(x - x0, y - y0)
-                        if best is None or d < best:
-                            best = d
-        out.append(min(best, float(radius)) if best is not None else float(radius))
+        while True:
+            r = v[k]
+            s = ((fq + q * q) - (f[r] + r * r)) / (2 * (q - r))
+            if s <= z[k]:
+                k -= 1
+                continue
+            break
+        k += 1
+        v[k] = q
+        z[k] = s
+        z[k + 1] = INF
+    k = 0
+    for q in range(n):
+        while z[k + 1] < q:
+            k += 1
+        r = v[k]
+        d[q] = (q - r) * (q - r) + f[r]
+    return d
+
+
+def distance_to_geometry(exact, width, height):
+    """Per pixel, the Euclidean distance (pixels) to the nearest pixel where `exact` has geometry
+    (exact 2-D transform: columns, then rows; inf when the frame has no geometry)."""
+    INF = float("inf")
+    columns = []
+    for x in range(width):
+        f = [0.0 if exact[y * width + x] != BACKGROUND else INF for y in range(height)]
+        columns.append(_envelope_1d(f, height))
+    out = [0.0] * (width * height)
+    for y in range(height):
+        row = _envelope_1d([columns[x][y] for x in range(width)], width)
+        out[y * width:(y + 1) * width] = [math.sqrt(v) for v in row]
     return out
+
+
+def overdraw_distances(exact, run, width, height, distance):
+    """Distances (pixels) from every pixel where `run` has geometry and `exact` has none to the
+    nearest exact geometry pixel; `distance()` gives the exact frame's transform (computed once)."""
+    over = [p for p in range(width * height) if run[p] != BACKGROUND and exact[p] == BACKGROUND]
+    if not over:
+        return []
+    field = distance()
+    return [field[p] for p in over]
 
 
 def frame_file(d, kind, f):
@@ -253,7 +284,15 @@ def compare(exact_dir, exact_frames, run_dir, args, exact_cache):
             proxy_wrong.append(min(1.0, other / proxy))
         _, _, rgb = read_png(frame_file(run_dir, "png", f))
         psnrs.append(psnr(exact_rgb, rgb, args.cap))
-        d = overdraw_distances(exact_ids, ids, w, h, args.radius)
+        if ("dt", f) not in exact_cache:
+            exact_cache[("dt", f)] = None
+
+        def field(f=f, exact_ids=exact_ids, w=w, h=h):
+            if exact_cache[("dt", f)] is None:
+                exact_cache[("dt", f)] = distance_to_geometry(exact_ids, w, h)
+            return exact_cache[("dt", f)]
+
+        d = overdraw_distances(exact_ids, ids, w, h, field)
         overdraw_pixels += len(d)
         overdraw.extend(d)
     mean = lambda v: sum(v) / len(v) if v else float("nan")
@@ -310,7 +349,6 @@ def main():
     p.add_argument("--label", default="", help="the walk's name, for the outputs")
     p.add_argument("--from", dest="first", type=int, default=2, help="first frame of the means (default 2)")
     p.add_argument("--cap", type=float, default=99.0, help="PSNR of identical frames, dB (default 99)")
-    p.add_argument("--radius", type=int, default=32, help="overdraw search radius, pixels (default 32)")
     p.add_argument("--tsv", help="append the table's rows here (tab-separated, with the walk's label)")
     p.add_argument("--markdown", help="write the Markdown table here (default: stdout)")
     p.add_argument("--json", help="append one JSON line per run here")
@@ -324,8 +362,8 @@ def main():
             print(f"frame_compare: --run {r}: expected T=DIR", file=sys.stderr)
             sys.exit(2)
         runs.append(r.split("=", 1))
-    if not runs or args.first < 0 or args.radius < 1:
-        print("frame_compare: need --run T=DIR, --from >= 0, --radius >= 1", file=sys.stderr)
+    if not runs or args.first < 0:
+        print("frame_compare: need --run T=DIR and --from >= 0", file=sys.stderr)
         sys.exit(2)
     try:
         exact_frames, _ = read_report(os.path.join(args.exact, "report.jsonl"))
