@@ -15,7 +15,10 @@ frame indices start at 0), frame by frame against the exact frame of the same in
             counts as --cap dB (PSNR is infinite there), so the mean stays finite;
   ids       share of all pixels whose first-hit id equals the exact frame's (background included);
   coverage  share of the exact frame's geometry pixels (id != 0xFFFFFFFF) where the run's frame
-            shows geometry (an unconfirmed pixel of a pegged frame has no id: it counts as none);
+            has a first hit (an unconfirmed pixel of a pegged frame has no id: it counts as none);
+  image coverage  the same share, counting the run's PNG pixels whose colour is not the
+            background colour (the commonest colour of the exact frame's background pixels;
+            black when it has none): pixels reconstructed from a few samples count here;
   overdraw  pixels with geometry where the exact frame has background, and their distance in
             pixels to the nearest exact geometry pixel (an exact Euclidean distance transform,
             Felzenszwalb & Huttenlocher 2012): how far a proxy's silhouette reaches out of the
@@ -236,6 +239,27 @@ def overdraw_distances(exact, run, width, height, distance):
     return [field[p] for p in over]
 
 
+def background_colour(rgb, ids):
+    """The commonest colour among the frame's background pixels (black when there are none)."""
+    counts = {}
+    for p in range(0, len(ids), 7):  # every 7th pixel is plenty for a flat background
+        if ids[p] == BACKGROUND:
+            c = rgb[3 * p:3 * p + 3]
+            counts[c] = counts.get(c, 0) + 1
+    return max(counts, key=counts.get) if counts else b"\0\0\0"
+
+
+def image_coverage(exact_ids, rgb, background):
+    """Share of the exact frame's geometry pixels where `rgb` is not the background colour."""
+    shown = geometry = 0
+    for p, i in enumerate(exact_ids):
+        if i != BACKGROUND:
+            geometry += 1
+            if rgb[3 * p:3 * p + 3] != background:
+                shown += 1
+    return shown / geometry if geometry else 1.0
+
+
 def frame_file(d, kind, f):
     return os.path.join(d, kind, f"frame_{f:05d}.{kind}")
 
@@ -251,7 +275,7 @@ def compare(exact_dir, exact_frames, run_dir, args, exact_cache):
     if n == 0:
         raise BadInput(f"{run_dir}/report.jsonl: no frames")
     pixels = frames[0]["pixels"]
-    psnrs, agree, cover, proxy_wrong, proxy_share, samples = [], [], [], [], [], []
+    psnrs, agree, cover, image_cover, proxy_wrong, proxy_share, samples = [], [], [], [], [], [], []
     overdraw, overdraw_pixels = [], 0
     first_full, first_full_ms, elapsed = None, None, 0.0
     for f in range(n):
@@ -260,8 +284,9 @@ def compare(exact_dir, exact_frames, run_dir, args, exact_cache):
             w, h, rgb = read_png(frame_file(exact_dir, "png", f))
             if w * h != pixels:
                 raise BadInput(f"{frame_file(exact_dir, 'png', f)}: {w}x{h}, the walk has {pixels} pixels")
-            exact_cache[f] = (w, h, rgb, read_ids(frame_file(exact_dir, "ids", f), pixels))
-        w, h, exact_rgb, exact_ids = exact_cache[f]
+            exact_ids = read_ids(frame_file(exact_dir, "ids", f), pixels)
+            exact_cache[f] = (w, h, rgb, exact_ids, background_colour(rgb, exact_ids))
+        w, h, exact_rgb, exact_ids, background = exact_cache[f]
         ids = read_ids(frame_file(run_dir, "ids", f), pixels)
         geometry = pixels - exact_ids.count(BACKGROUND)
         both = sum(map(operator.and_, map(operator.ne, exact_ids, itertools.repeat(BACKGROUND)),
@@ -284,6 +309,7 @@ def compare(exact_dir, exact_frames, run_dir, args, exact_cache):
             proxy_wrong.append(min(1.0, other / proxy))
         _, _, rgb = read_png(frame_file(run_dir, "png", f))
         psnrs.append(psnr(exact_rgb, rgb, args.cap))
+        image_cover.append(image_coverage(exact_ids, rgb, background))
         if ("dt", f) not in exact_cache:
             exact_cache[("dt", f)] = None
 
@@ -310,6 +336,8 @@ def compare(exact_dir, exact_frames, run_dir, args, exact_cache):
         "mean_id_agreement": mean(agree),
         "mean_coverage": mean(cover),
         "min_coverage": min(cover) if cover else float("nan"),
+        "mean_image_coverage": mean(image_cover),
+        "min_image_coverage": min(image_cover) if image_cover else float("nan"),
         "first_full_frame": first_full,
         "first_full_ms": first_full_ms,
         "mean_samples_share": mean(samples),
@@ -325,7 +353,8 @@ def compare(exact_dir, exact_frames, run_dir, args, exact_cache):
 COLUMNS = [
     ("T", "{}"), ("p50 ms", "{:.1f}"), ("p95 ms", "{:.1f}"), ("read MiB", "{:.1f}"), ("resident MiB", "{:.1f}"),
     ("PSNR dB", "{:.1f}"), ("min PSNR", "{:.1f}"), ("ids agree", "{:.3f}"), ("coverage", "{:.4f}"),
-    ("min cov.", "{:.4f}"), ("first >=99 %", "{}"), ("proxy px", "{:.3f}"), ("proxy ids differ", "{}"),
+    ("min cov.", "{:.4f}"), ("image cov.", "{:.4f}"), ("min image cov.", "{:.4f}"), ("first >=99 %", "{}"),
+    ("proxy px", "{:.3f}"), ("proxy ids differ", "{}"),
     ("overdraw px/frame", "{:.0f}"), ("overdraw dist mean/p95/max", "{}"), ("samples", "{:.3f}"),
 ]
 
@@ -336,7 +365,8 @@ def cells(label, r):
     dist = f"{r['overdraw_mean_px']:.1f}/{r['overdraw_p95_px']:.1f}/{r['overdraw_max_px']:.1f}"
     values = [label, r["p50_frame_ms"], r["p95_frame_ms"], r["bytes_read_mib"], r["max_resident_mib"],
               r["mean_psnr_db"], r["min_psnr_db"], r["mean_id_agreement"], r["mean_coverage"], r["min_coverage"],
-              first, r["mean_proxy_share"], differ, r["overdraw_pixels_per_frame"], dist, r["mean_samples_share"]]
+              r["mean_image_coverage"], r["min_image_coverage"], first, r["mean_proxy_share"], differ,
+              r["overdraw_pixels_per_frame"], dist, r["mean_samples_share"]]
     return [fmt.format(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else str(v)
             for (_, fmt), v in zip(COLUMNS, values)]
 
