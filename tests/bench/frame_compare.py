@@ -19,6 +19,7 @@ frame indices start at 0), frame by frame against the exact frame of the same in
   image coverage  the same share, counting the run's PNG pixels whose colour is not the
             background colour (the commonest colour of the exact frame's background pixels;
             black when it has none): pixels reconstructed from a few samples count here;
+            black frames: frames whose image coverage is below 1 %;
   overdraw  pixels with geometry where the exact frame has background, and their distance in
             pixels to the nearest exact geometry pixel (an exact Euclidean distance transform,
             Felzenszwalb & Huttenlocher 2012): how far a proxy's silhouette reaches out of the
@@ -338,6 +339,7 @@ def compare(exact_dir, exact_frames, run_dir, args, exact_cache):
         "min_coverage": min(cover) if cover else float("nan"),
         "mean_image_coverage": mean(image_cover),
         "min_image_coverage": min(image_cover) if image_cover else float("nan"),
+        "black_frames": sum(1 for c in image_cover if c < 0.01),
         "first_full_frame": first_full,
         "first_full_ms": first_full_ms,
         "mean_samples_share": mean(samples),
@@ -353,7 +355,8 @@ def compare(exact_dir, exact_frames, run_dir, args, exact_cache):
 COLUMNS = [
     ("T", "{}"), ("p50 ms", "{:.1f}"), ("p95 ms", "{:.1f}"), ("read MiB", "{:.1f}"), ("resident MiB", "{:.1f}"),
     ("PSNR dB", "{:.1f}"), ("min PSNR", "{:.1f}"), ("ids agree", "{:.3f}"), ("coverage", "{:.4f}"),
-    ("min cov.", "{:.4f}"), ("image cov.", "{:.4f}"), ("min image cov.", "{:.4f}"), ("first >=99 %", "{}"),
+    ("min cov.", "{:.4f}"), ("image cov.", "{:.4f}"), ("min image cov.", "{:.4f}"), ("black frames", "{}"),
+    ("first >=99 %", "{}"),
     ("proxy px", "{:.3f}"), ("proxy ids differ", "{}"),
     ("overdraw px/frame", "{:.0f}"), ("overdraw dist mean/p95/max", "{}"), ("samples", "{:.3f}"),
 ]
@@ -365,7 +368,7 @@ def cells(label, r):
     dist = f"{r['overdraw_mean_px']:.1f}/{r['overdraw_p95_px']:.1f}/{r['overdraw_max_px']:.1f}"
     values = [label, r["p50_frame_ms"], r["p95_frame_ms"], r["bytes_read_mib"], r["max_resident_mib"],
               r["mean_psnr_db"], r["min_psnr_db"], r["mean_id_agreement"], r["mean_coverage"], r["min_coverage"],
-              r["mean_image_coverage"], r["min_image_coverage"], first, r["mean_proxy_share"], differ,
+              r["mean_image_coverage"], r["min_image_coverage"], r["black_frames"], first, r["mean_proxy_share"], differ,
               r["overdraw_pixels_per_frame"], dist, r["mean_samples_share"]]
     return [fmt.format(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else str(v)
             for (_, fmt), v in zip(COLUMNS, values)]
