@@ -148,10 +148,16 @@ pixel_error_section() {
     {
       echo "### $walk ($pe_frames frames, $pe_size, load $(cut -d' ' -f1-3 /proc/loadavg))"
       echo
-      grep -h "proxies:" "$pe/$model.build.txt" | sed 's/^ */store: /' || true
-      [[ ! -f "$pe/$label/store_info.txt" ]] || sed -n '/^proxies/,/^[a-z]/p' "$pe/$label/store_info.txt" |
-        grep -E "^proxies|depth" | sed 's/^/    /'
-      echo
+      if [[ $kind == orbit ]]; then  # the store's proxies and their stored bounds, once per model
+        grep -h "proxies:" "$pe/$model.build.txt" | sed 's/^ */store (frontier-build): /' || true
+        if [[ -f "$pe/$label/store_info.txt" ]]; then
+          echo
+          echo "Stored object-space error bound by depth of the top tree (frontier-store info):"
+          echo
+          sed -n '/^proxies/,/^[a-z]/p' "$pe/$label/store_info.txt" | grep -E "depth" | sed 's/^ */    /'
+        fi
+        echo
+      fi
       cat "$pe/$label.md"
       echo
     } >> "$raw/pixel_error.md"
