@@ -368,7 +368,8 @@ def cells(label, r):
     dist = f"{r['overdraw_mean_px']:.1f}/{r['overdraw_p95_px']:.1f}/{r['overdraw_max_px']:.1f}"
     values = [label, r["p50_frame_ms"], r["p95_frame_ms"], r["bytes_read_mib"], r["max_resident_mib"],
               r["mean_psnr_db"], r["min_psnr_db"], r["mean_id_agreement"], r["mean_coverage"], r["min_coverage"],
-              r["mean_image_coverage"], r["min_image_coverage"], r["black_frames"], first, r["mean_proxy_share"], differ,
+              r["mean_image_coverage"], r["min_image_coverage"], r["black_frames"], first,
+              r["mean_proxy_share"], differ,
               r["overdraw_pixels_per_frame"], dist, r["mean_samples_share"]]
     return [fmt.format(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else str(v)
             for (_, fmt), v in zip(COLUMNS, values)]

@@ -105,9 +105,10 @@ run() { echo "\$ $*" >> "$raw/commands.txt"; "$@"; }
 # image's error, on four walks over stores with proxies (tests/bench/pixel_error_curve.sh).
 pixel_error_section() {
   echo "== 9. what accuracy costs in time: pixel error"
-  local pe="$work/pixel_error" pe_triangles pe_size pe_frames
-  if [[ $quick == 1 ]]; then pe_triangles=200000; pe_size=320x240; pe_frames=30
-  else pe_triangles=2000000; pe_size=640x360; pe_frames=90; fi
+  # Pegged walks depend on timing: the default runs every T three times (a row each).
+  local pe="$work/pixel_error" pe_triangles pe_size pe_frames pe_repeats
+  if [[ $quick == 1 ]]; then pe_triangles=200000; pe_size=320x240; pe_frames=30; pe_repeats=1
+  else pe_triangles=2000000; pe_size=640x360; pe_frames=90; pe_repeats=3; fi
   mkdir -p "$pe"
   rm -f "$raw/pixel_error.tsv" "$raw/pixel_error.jsonl"
   local model kind label
@@ -122,8 +123,9 @@ pixel_error_section() {
     echo "Every walk: the exact frames (T = 0, \`--sync-paging\`) against T ∈ {0, 0.5, 1, 2, 4, 8} with"
     echo "\`--frame-ms 33 --cache 512M --threads 2\`, $pe_size, $pe_frames frames, stores of about $pe_triangles"
     echo "triangles built with \`--proxy-triangles 256\` (tests/bench/pixel_error_curve.sh, compared by"
-    echo "tests/bench/frame_compare.py; one run per T, so timing noise under load shows). Means and minima over"
-    echo "frames 2.. (the targets' \"from the third frame on\"); a frame identical to the exact one counts as 99 dB."
+    echo "tests/bench/frame_compare.py; $pe_repeats run(s) per T, a row each: pegged walks depend on timing)."
+    echo "Means and minima over frames 2.. (the targets' \"from the third frame on\"); a frame identical to the"
+    echo "exact one counts as 99 dB."
     echo "*coverage*: share of the exact frame's geometry pixels where the frame has a first hit (an id);"
     echo "*image cov.*: the same, counting PNG pixels not of the background colour (a blur reconstructed from"
     echo "few samples counts); *black frames*: image coverage below 1 %; *first >=99 %*: the first frame (from 0)"
@@ -142,7 +144,8 @@ pixel_error_section() {
     model="${walk% *}"; kind="${walk#* }"; label="${model}_$kind"
     run "$gen" path --model "$pe/$model.ply" --kind "$kind" --frames "$pe_frames" -o "$pe/$label.cam"
     tests/bench/pixel_error_curve.sh --store "$pe/$model.frontier" --path "$pe/$label.cam" --dir "$pe/$label" \
-      --build "$build" --size "$pe_size" --cache 512M --frame-ms 33 --threads 2 --label "$label" \
+      --build "$build" --size "$pe_size" --cache 512M --frame-ms 33 --threads 2 --repeats "$pe_repeats" \
+      --label "$label" \
       --tsv "$raw/pixel_error.tsv" --json "$raw/pixel_error.jsonl" --markdown "$pe/$label.md" \
       --commands "$raw/commands.txt"
     {
