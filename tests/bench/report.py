@@ -617,6 +617,12 @@ def section_pixel_error():
         out.append("No measurements (raw/pixel_error.md missing).\n")
         return
     out.append(read_text("pixel_error.md").strip() + "\n")
+    # Headline: T = 1 (the default) per walk, the first run of each (report.sh --repeats names them "1 #1").
+    for r in read_jsonl("pixel_error.jsonl"):
+        if r["pixel_error"] in ("1", "1 #1"):
+            headline.append((f"pixel error T = 1, {r['walk'].replace('_', ' ')}: p95 ms, mean / min coverage, PSNR",
+                             f"{r['p95_frame_ms']:.1f}; {r['mean_coverage']:.3f} / {r['min_coverage']:.3f}; "
+                             f"{r['mean_psnr_db']:.1f} dB"))
 
 
 def section_commands():
