@@ -266,6 +266,8 @@ class PagedWorld final : public CellGate {
   // Tells the decoder how much room the decoded share has now.
   void publish_room();
   void set_decode_eye(const Vec3& eye);
+  // The decoder waits for room the last sync() did not publish: the frame's thread decodes.
+  bool decoder_blocked() const;
   std::vector<Decoded> take_decoded();
   // Gives back decoded cells sync() had no time to place.
   void keep_decoded(std::move_iterator<std::vector<Decoded>::iterator> first,

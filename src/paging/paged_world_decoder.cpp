@@ -42,6 +42,11 @@ void PagedWorld::stop_decoder() {
   decoder_.reset();
 }
 
+bool PagedWorld::decoder_blocked() const {
+  std::lock_guard<std::mutex> lock(decoder_->mutex);
+  return decoder_->blocked;
+}
+
 void PagedWorld::set_decode_eye(const Vec3& eye) {
   std::lock_guard<std::mutex> lock(decoder_->mutex);
   decoder_->eye = eye;
@@ -109,7 +114,8 @@ void PagedWorld::decoder_loop() {
     {
       std::unique_lock<std::mutex> lock(s.mutex);
       if (s.stop) return;
-      if (s.done_bytes >= s.cap || s.room_generation == blocked_at) {
+      s.blocked = s.room_generation == blocked_at;
+      if (s.done_bytes >= s.cap || s.blocked) {
         s.cv.wait_for(lock, kDecoderIdle);
         continue;
       }
@@ -142,10 +148,14 @@ void PagedWorld::decoder_loop() {
       const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
       std::lock_guard<std::mutex> lock(s.mutex);
       s.ms += ms;
-      // Decoded but over the room the world had at the last sync(): not kept (its memory
-      // would not be accounted), wanted again; the decoder waits for more room.
-      if (!d.retry && d.status && s.done_bytes + d.bytes > std::min(s.room, s.cap)) {
+      // Decoded but over the room the world had at the last sync(), or over the cap beside
+      // other finished cells (one cell may exceed the cap alone: a small budget's cells are
+      // larger than a sixteenth of it): not kept (its memory would not be accounted), wanted
+      // again; the decoder waits for the next sync().
+      const bool over_cap = !s.done.empty() && s.done_bytes + d.bytes > s.cap;
+      if (!d.retry && d.status && (over_cap || s.done_bytes + d.bytes > s.room)) {
         blocked_at = s.room_generation;
+        s.blocked = true;
         d.retry = true;
       }
       if (d.retry) {

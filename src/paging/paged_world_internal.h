@@ -68,6 +68,7 @@ struct PagedWorld::DecoderState {
   uint64_t cap = 0;               // done_bytes stay below this
   uint64_t room = 0;              // the decoded share's free bytes at the last publish_room()
   uint64_t room_generation = 0;
+  bool blocked = false;           // a decoded cell did not fit the room of this generation
   Vec3 eye{0.0};                  // the current view's eye (priority)
   bool has_eye = false;
   double ms = 0.0;                // decoding time since the last take_decoded()

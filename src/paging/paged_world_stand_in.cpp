@@ -371,14 +371,20 @@ bool PagedWorld::stand_in_wanted(std::chrono::steady_clock::time_point deadline)
     const int32_t above = link_above(leaf_node_[c]);
     if (above >= 0) {
       // Drawn by a linked node's proxy already (linked after the cell was wanted): for detail,
-      // the page is not wanted; while pages are missing, it still is.
+      // the page is not wanted; while pages are missing, it still is. Work parked on the cell
+      // resumes through the link (the caster must be told: nothing else may have changed, and
+      // a frame with nothing pending would end with that work parked).
       if (proxy_[size_t(above)].link == kLinkDetail) detail_done.push_back(c);
+      changed = true;
       continue;
     }
     const int32_t detail = detail_node(c);
     if (detail >= 0) {
-      changed |= link_node(uint32_t(detail), kLinkDetail);
-      if (link_above(leaf_node_[c]) >= 0) detail_done.push_back(c);
+      link_node(uint32_t(detail), kLinkDetail);
+      if (link_above(leaf_node_[c]) >= 0) {
+        detail_done.push_back(c);
+        changed = true;
+      }
       continue;
     }
     // A missing cell is drawn by the finest proxy there is until its page arrives.
