@@ -3,6 +3,7 @@
 // what it finished.
 #include "src/paging/paged_world.h"
 #include "src/paging/paged_world_internal.h"
+#include "src/core/geometry.h"
 
 #include <tbb/task_arena.h>
 
@@ -17,10 +18,6 @@ namespace {
 // thread, which does not signal).
 constexpr auto kDecoderIdle = std::chrono::microseconds(500);
 
-double distance_to(const Aabb& box, const Vec3& p) {
-  const Vec3 d = glm::max(glm::max(box.lo - p, Vec3(0.0)), p - box.hi);
-  return glm::length(d);
-}
 
 }  // namespace
 
@@ -85,7 +82,7 @@ std::vector<uint32_t> PagedWorld::pick_ready(const Vec3& eye, bool has_eye, size
     double key = 0.0;
     if (has_eye) {
       const Aabb& b = model_.cells()[snapshot[i]].bounds;
-      key = glm::length(b.hi - b.lo) / std::max(distance_to(b, eye), 1e-12);
+      key = glm::length(b.hi - b.lo) / std::max(distance_to_box(eye, b), 1e-12);
     }
     ranked.emplace_back(-key, snapshot[i]);
   }

@@ -2,6 +2,7 @@
 // not worth their detail (see "Stand-ins" in paged_world.h).
 #include "src/paging/paged_world.h"
 #include "src/paging/paged_world_internal.h"
+#include "src/core/geometry.h"
 
 #include <fmt/format.h>
 
@@ -19,11 +20,6 @@ constexpr uint64_t kProxyShareDivisor = 16;
 // Proxies decoded per sync() even past its deadline (progress).
 constexpr size_t kMinStandInWork = 8;
 
-// Distance from `p` to the box (0 inside).
-double distance_to(const Aabb& box, const Vec3& p) {
-  const Vec3 d = glm::max(glm::max(box.lo - p, Vec3(0.0)), p - box.hi);
-  return glm::length(d);
-}
 
 }  // namespace
 
@@ -68,7 +64,7 @@ double PagedWorld::pixels_of(uint32_t node) const {
   if (p == nullptr) return kInfinity;
   // The point of the node's region nearest the eye; its distance stands for the depth (it is
   // at least the depth, so this overestimates the pixels: conservative).
-  const double d = distance_to(model_.node_region(node), detail_view_.eye);
+  const double d = distance_to_box(detail_view_.eye, model_.node_region(node));
   if (d <= 0.0) return kInfinity;
   // A length e at distance d spans e * height / (2 d tan(vfov / 2)) pixels.
   return p->error * double(detail_view_.height) / (2.0 * detail_view_.half_h * d);
