@@ -334,9 +334,16 @@ double PagedWorld::wait_for_pages(std::chrono::steady_clock::time_point deadline
       // for missing cells: the decoder takes it); so is a proxy page.
       bool any = false;
       const bool decodes_here = !stand_in_missing_ || blocked;
-      for (size_t k = 0; k < wanted_.size() && decodes_here && !any; ++k) {
+      for (size_t k = 0; k < wanted_.size() && !any; ++k) {
         const uint64_t page = model_.cells()[wanted_[k]].page;
-        any = cache_->ready(page) || cache_->failed(page);
+        if (cache_->ready(page) || cache_->failed(page)) {
+          any = decodes_here;
+        } else if (proxy_.empty() || detail_node(wanted_[k]) < 0) {
+          // Evicted unread (the page cache made room for later pages), or put back by the
+          // decoder after its page went: asked for again, else nothing would bring it (a cell
+          // a proxy draws for detail is not read, as in want()).
+          cache_->request(page);
+        }
       }
       for (size_t k = 0; k < proxy_wanted_.size() && !any; ++k) {
         const uint64_t page = model_.proxy(proxy_wanted_[k])->page;

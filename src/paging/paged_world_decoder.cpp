@@ -164,6 +164,9 @@ void PagedWorld::decoder_loop() {
       }
     }
     if (!back.empty()) {
+      // A page that went between the pick and the decode (the page cache evicted it) is asked
+      // for again: nothing else would bring it back while the frame waits for it.
+      for (const uint32_t cell : back) cache_->request(model_.cells()[cell].page);
       std::lock_guard<std::mutex> lock(wanted_mutex_);
       wanted_.insert(wanted_.end(), back.begin(), back.end());
       std::lock_guard<std::mutex> dl(s.mutex);
