@@ -178,6 +178,60 @@ TEST(WalkthroughStandIn, AStillCameraRefinesToTheExactImage) {
   EXPECT_TRUE(again.continued);
 }
 
+// A rope may lead to a top node deep inside a linked node's region (the neighbour across a face
+// is the deepest node covering it, below the link): the ray must still meet the link's proxy
+// there, not the missing cell under it. Every rope of every cell a ray can reach arrives where a
+// descent from the root arrives. (Before: a sample-budget frame reached the missing cell through
+// a rope, parked, resumed through the proxy from the eye, and looped there forever.)
+TEST(WalkthroughStandIn, RopesIntoALinkedRegionArriveWhereTheRootDescentArrives) {
+  WalkOptions o = options(1.0);
+  o.budget.samples = uint64_t(1) << 30;  // budgeted (stand-ins for missing cells), ends when complete
+  auto walk = Walkthrough::open(terrain().proxies, o);
+  ASSERT_TRUE(walk.is_ok());
+  size_t linked = 0, checked = 0;
+  for (const Camera& cam : orbit()) {
+    const FrameReport r = (*walk)->frame(cam);
+    SCOPED_TRACE(r.to_json().dump());
+    const KdTree& tree = (*walk)->world().tree();
+    linked += (*walk)->world().linked_nodes().size();
+    // The cells a ray can be in: those reached from the root (through links), and every top
+    // cell (a top cell under a linked node is not reached, but its neighbours' ropes and the
+    // cells the caster holds from before the link still lead into the region).
+    std::vector<int32_t> cells;
+    for (size_t c = 0; c < tree.cells().size(); ++c) {
+      if ((*walk)->world().store_cell(int32_t(c)) == c) cells.push_back(int32_t(c));
+    }
+    std::vector<int32_t> stack = {0};
+    while (!stack.empty()) {
+      const int32_t n = stack.back();
+      const KdTree::Node& node = tree.nodes()[size_t(n)];
+      stack.pop_back();
+      if (node.is_leaf()) {
+        cells.push_back(int32_t(node.child));
+      } else if (node.is_link()) {
+        stack.push_back(int32_t(node.child));
+      } else {
+        stack.push_back(n + 1);
+        stack.push_back(int32_t(node.child));
+      }
+    }
+    for (const int32_t c : cells) {
+      const KdTree::Cell& cell = tree.cell(c);
+      for (int f = 0; f < 6; ++f) {
+        if (cell.rope[f] == KdTree::kNone) continue;
+        const int a = f / 2;
+        Vec3 p = 0.5 * (cell.bounds.lo + cell.bounds.hi), dir(0.0);
+        p[a] = (f & 1) ? cell.bounds.hi[a] : cell.bounds.lo[a];
+        dir[a] = (f & 1) ? 1.0 : -1.0;
+        ASSERT_EQ(tree.descend(cell.rope[f], p, dir), tree.locate(p, dir)) << "cell " << c << " face " << f;
+        ++checked;
+      }
+    }
+  }
+  EXPECT_GT(linked, 0u) << "no frame stood in: the test checked nothing it was meant to";
+  EXPECT_GT(checked, 0u);
+}
+
 // Budgeted frames (300 ms, more than a 64x48 frame needs: each ends when its image is complete,
 // pages or not) show geometry wherever the exact frame has it: missing cells are
 // drawn by their ancestors' proxies, never by nothing; whatever stood in is counted.

@@ -297,6 +297,9 @@ class PagedWorld final : public CellGate {
   // linked nodes below it. False when nothing changed (already linked, or no room).
   bool link_node(uint32_t node, uint8_t why);
   void unlink_node(uint32_t node);
+  // Sets the tree's cover of the nodes below `node` (the outermost linked ancestor of each), so
+  // that a rope into a linked node's region goes through the link (after node links or unlinks).
+  void cover_subtree(uint32_t node);
   // The linked node at or above top node `node` (-1: none).
   int32_t link_above(uint32_t node) const;
   // Every cell under `node` is resident, failed or empty.

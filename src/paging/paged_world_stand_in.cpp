@@ -47,6 +47,7 @@ void PagedWorld::open_proxies() {
       leaves_under_[n] = leaves_under_[n + 1] + leaves_under_[nodes[n].child];
     }
   }
+  tree_.cover_.assign(nodes.size(), KdTree::kNone);
   stand_in_prim_.reserve(scene_.prims.capacity());
   // The root's proxy is there from the first frame: read now, through the cache.
   if (model_.proxy(0) != nullptr) {
@@ -253,8 +254,20 @@ bool PagedWorld::link_node(uint32_t node, uint8_t why) {
   slot.last_link = why;
   slot.used = ++proxy_use_;
   linked_nodes_.push_back(node);
+  cover_subtree(node);
   ++counters_.stand_ins;
   return true;
+}
+
+void PagedWorld::cover_subtree(uint32_t node) {
+  // Preorder: a node's parent comes before it, so its cover is known when the node's is set.
+  std::vector<int32_t>& cover = tree_.cover_;
+  for (uint32_t n = node + 1; n < subtree_end_[node]; ++n) {
+    const int32_t p = parent_[n];
+    cover[n] = cover[size_t(p)] != KdTree::kNone ? cover[size_t(p)]
+               : proxy_[size_t(p)].link != kLinkNone ? p
+                                                     : KdTree::kNone;
+  }
 }
 
 void PagedWorld::unlink_node(uint32_t node) {
@@ -263,6 +276,7 @@ void PagedWorld::unlink_node(uint32_t node) {
   tree_.nodes_[node] = slot.saved;
   slot.link = kLinkNone;
   std::erase(linked_nodes_, node);
+  cover_subtree(node);
   ++stand_ins_replaced_;
 }
 
