@@ -168,6 +168,15 @@ bool PageCache::ready(PageId id) const {
   return it != entries_.end() && it->second.state == State::Resident;
 }
 
+void PageCache::arrived(std::span<const PageId> ids, std::vector<uint8_t>& out) const {
+  out.assign(ids.size(), 0);
+  std::lock_guard lock(mutex_);
+  for (size_t i = 0; i < ids.size(); ++i) {
+    auto it = entries_.find(ids[i]);
+    out[i] = it != entries_.end() && (it->second.state == State::Resident || it->second.state == State::Failed) ? 1 : 0;
+  }
+}
+
 bool PageCache::failed(PageId id) const {
   std::lock_guard lock(mutex_);
   auto it = entries_.find(id);

@@ -122,6 +122,8 @@ class PageCache {
   bool ready(PageId id) const;
   // True if loading `id` failed; pin(id) returns the error.
   bool failed(PageId id) const;
+  // ready() || failed() for each of `ids`, under one lock: out[i] is 1 when ids[i] arrived.
+  void arrived(std::span<const PageId> ids, std::vector<uint8_t>& out) const;
 
   PageCacheStats stats() const;
   uint64_t budget_bytes() const { return budget_; }

@@ -71,6 +71,10 @@ struct WalkTotals {
   double samples = 0.0, ratio_sum = 0.0, ratio_max = 0.0;
   uint64_t bytes_read = 0, ratio_frames = 0, errors = 0, resident_max = 0, collision_max = 0;
   uint64_t complete = 0, floor_frames = 0;
+  // The first frame whose image was complete (every pixel sampled, from pages or proxies) and
+  // the frame time spent up to its end (-1, 0: none was).
+  int64_t first_complete = -1;
+  double ms_to_first_complete = 0.0, ms_so_far = 0.0;
   // Thrashing (FrameReport::thrashing): frames, the largest working set and the cache it needs.
   uint64_t thrashing = 0, unfit = 0, cells_reread = 0, working_set_max = 0, frame_read_max = 0;
   // The cache that holds the largest working set (FrameReport::cache_needed of that frame).
@@ -89,6 +93,11 @@ struct WalkTotals {
     resident_max = std::max(resident_max, r.resident_bytes);
     collision_max = std::max(collision_max, r.collision_bytes);
     complete += r.complete ? 1 : 0;
+    ms_so_far += r.frame_ms;
+    if (r.complete && first_complete < 0) {
+      first_complete = int64_t(frame_ms.size()) - 1;
+      ms_to_first_complete = ms_so_far;
+    }
     floor_frames += r.floor_ms > 0.0 ? 1 : 0;
     if (r.oracle_ratio) {
       ratio_sum += *r.oracle_ratio;
@@ -108,6 +117,8 @@ nlohmann::json summary_json(const ViewerOptions& o, const WalkTotals& t, const W
                             {"p95_frame_ms", percentile(t.frame_ms, 0.95)},
                             {"mean_samples", t.mean_samples()},
                             {"complete_frames", t.complete},
+                            {"first_complete_frame", t.first_complete},
+                            {"ms_to_first_complete", t.ms_to_first_complete},
                             {"floor_frames", t.floor_frames},
                             {"peak_rss_mib", peak_rss_mib()},
                             {"max_resident_bytes", t.resident_max},
@@ -133,11 +144,15 @@ nlohmann::json summary_json(const ViewerOptions& o, const WalkTotals& t, const W
 
 void print_summary(const ViewerOptions& o, const WalkTotals& t, const Walkthrough& walk, const Walker* walker) {
   fmt::print(stderr, "frontier-view: {} frames; frame ms p50 {:.1f} p95 {:.1f}; mean samples {:.0f} of {}; "
-                     "{} complete; {} past the peg for the sample floor; peak RSS {:.0f} MiB "
+                     "{} complete{}; {} past the peg for the sample floor; peak RSS {:.0f} MiB "
                      "(resident at most {:.1f} of {:.1f} MiB); read {:.1f} MiB; "
                      "{} page errors{}\n",
              t.frames(), percentile(t.frame_ms, 0.5), percentile(t.frame_ms, 0.95), t.mean_samples(),
-             walk.view().pixels(), t.complete, t.floor_frames, peak_rss_mib(), double(t.resident_max) / 1048576.0,
+             walk.view().pixels(), t.complete,
+             t.first_complete >= 0
+                 ? fmt::format(" (the first: frame {}, {:.0f} ms into the walk)", t.first_complete, t.ms_to_first_complete)
+                 : std::string(),
+             t.floor_frames, peak_rss_mib(), double(t.resident_max) / 1048576.0,
              double(walk.world().budget_bytes()) / 1048576.0, double(t.bytes_read) / 1048576.0, t.errors,
              t.ratio_frames ? fmt::format("; touched/oracle mean {:.3f} max {:.3f}", t.ratio_sum / double(t.ratio_frames),
                                           t.ratio_max)

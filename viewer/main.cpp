@@ -86,6 +86,7 @@ std::string walk_options(ViewerOptions& o, WalkOptions& wo) {
   wo.budget.samples = o.samples;
   wo.min_sampled = o.min_sampled;
   wo.sync_paging = o.sync_paging;
+  wo.pixel_error = o.pixel_error >= 0.0 ? o.pixel_error : (o.sync_paging ? 0.0 : 1.0);
   wo.oracle = o.oracle;
   wo.shadows = !o.no_shadows;
   if (o.cell_prims_given) wo.cell_prims = o.cell_prims;

@@ -33,6 +33,12 @@ void add_store_options(CLI::App& app, ViewerOptions& o) {
   app.add_option("--collision-cache", o.collision_cache_text,
                  "walk mode: memory budget for the collision grid's bricks, paged in as the walker reaches them "
                  "(default 64M)");
+  app.add_option("--pixel-error", o.pixel_error,
+                 "store with proxies: draw a node by its proxy when the proxy's error bound projects below T pixels "
+                 "(at the node's point nearest the eye), and missing cells by their nearest loaded ancestor's proxy "
+                 "while a budgeted frame waits for their pages; 0 = exact (every cell from its page). A still camera "
+                 "refines to 0. Default 1, and 0 with --sync-paging")
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--path", o.path_file, "store, headless: camera path (.cam, from frontier-gen path)");
   app.add_option("--frames", o.frames, "frames to render (default: the path's length; window: until closed)")
       ->check(CLI::NonNegativeNumber);

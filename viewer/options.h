@@ -34,6 +34,7 @@ struct ViewerOptions {
   std::string path_file, report_path, png_dir, ids_dir;
   int frames = 0, png_every = 0;
   bool oracle = false, sync_paging = false, walk = false, in_memory = false;
+  double pixel_error = -1.0;  // --pixel-error; negative: not given (1, or 0 with --sync-paging)
   double eye_height = 0.0, radius = 0.0;
   // One frame.
   std::string png_path, ids_path, stats_path;

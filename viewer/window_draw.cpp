@@ -149,6 +149,14 @@ void WindowSession::draw_text_panel(float scale) {
   lines.emplace_back(fmt::format("resident {:.1f} of {:.0f} MiB ({} cells)  read {:.2f} MiB", double(r.resident_bytes) / kMiB,
                                  double(r.cache_budget) / kMiB, grouped(r.resident_cells), double(r.bytes_read) / kMiB),
                      kWhite);
+  if (walk_.world().has_proxies()) {
+    // Stand-ins: the pixel error, the share of the image on proxies, cells drawn by an ancestor's
+    // proxy because their pages were missing.
+    const double proxy = r.pixels ? 100.0 * double(r.proxy_pixels) / double(r.pixels) : 0.0;
+    lines.emplace_back(fmt::format("pixel error {:.3g} (, .)  proxy {:.0f}% of the image, {} nodes  missing cells {}",
+                                   walk_.pixel_error(), proxy, grouped(r.proxy_nodes), grouped(r.missing_nodes)),
+                       r.missing_nodes > 0 ? kOrange : kWhite);
+  }
   if (walker_ != nullptr) {
     // Walk mode's collision grid, paged on its own budget (--collision-cache).
     const CollisionGrid::Counters c = walker_->grid().counters();
@@ -183,7 +191,7 @@ void WindowSession::draw_charts(int fb_w, int fb_h, float scale) {
   // Key help along the bottom: one line when it fits, else two.
   const std::string help1 = walking_ ? "WASD walk  Shift run  drag/arrows look  M capture mouse  wheel/+- speed  F fly"
                                      : "WASD fly  E/Space up  Q/C down  Shift run  drag/arrows look  M capture mouse  wheel/+- speed  F walk";
-  const std::string help2 = "P peg time/samples  [ ] peg value  T cells view  H hud  R reset  Esc quit";
+  const std::string help2 = "P peg time/samples  [ ] peg value  , . pixel error  T cells view  H hud  R reset  Esc quit";
   const bool one_line = hud::text_width(help1 + "  " + help2, scale) + 2.0f * margin <= float(fb_w);
   const float help_h = lh * (one_line ? 1.0f : 2.0f) + 2.0f;
   {

@@ -135,6 +135,17 @@ void WindowSession::handle_key(int key) {
                    : cell_view_ == CellView::Map ? CellView::MapAndBoxes : CellView::Off;
       break;
     case GLFW_KEY_H: show_hud_ = !show_hud_; break;
+    // Pixel error (stores with proxies): , halves it (below 0.25: 0, exact), . doubles it (from 0: 0.5).
+    case GLFW_KEY_COMMA: {
+      const double t = walk_.pixel_error() / 2.0;
+      walk_.set_pixel_error(t < 0.25 ? 0.0 : t);
+      break;
+    }
+    case GLFW_KEY_PERIOD: {
+      const double t = walk_.pixel_error();
+      walk_.set_pixel_error(t <= 0.0 ? 0.5 : std::min(t * 2.0, 1024.0));
+      break;
+    }
     case GLFW_KEY_R:
       rig_.reset();
       set_walking(walking_);

@@ -532,6 +532,9 @@ KdTree KdTree::top_only(const std::vector<Node>& nodes, const Aabb& bounds) {
 }
 
 int32_t KdTree::descend(int32_t n, const Vec3& p, const Vec3& dir) const {
+  if (static_cast<size_t>(n) < cover_.size() && cover_[static_cast<size_t>(n)] != kNone) {
+    n = cover_[static_cast<size_t>(n)];
+  }
   while (true) {
     const Node& node = nodes_[static_cast<size_t>(n)];
     if (node.is_leaf()) return static_cast<int32_t>(node.child);

@@ -147,6 +147,10 @@ class KdTree {
   std::vector<uint32_t> refs_;
   std::vector<Aabb> ref_bounds_;
   uint32_t depth_ = 0;
+  // PagedWorld only: for each top node, the outermost linked (axis 4) ancestor it lies under,
+  // or kNone. A rope may lead to a node deep inside a linked node's region, past the link:
+  // descend() starts at the link instead, so the ray meets what the link draws there.
+  std::vector<int32_t> cover_;
 
   friend class KdBuilder;
   friend class PagedWorld;  // grafts and unlinks the subtrees of paged-in store cells

@@ -1,11 +1,15 @@
 // PagedWorld: grafting paged-in store cells into one tree and one scene (see paged_world.h).
 #include "src/paging/paged_world.h"
+#include "src/paging/paged_world_internal.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/info.h>
 
+#include <sys/mman.h>
+
 #include <algorithm>
+#include <cstdint>
 #include <thread>
 
 namespace frontier {
@@ -13,6 +17,17 @@ namespace frontier {
 namespace {
 
 constexpr uint64_t kMinCompressedShare = 1ull << 20;
+
+// Grafting a cell appends to the world's arrays, which were reserved but never touched: with
+// 4 KiB pages that was a page fault per 4 KiB, most of a graft's time on a virtual machine (1.5
+// ms per 500-triangle cell, perf). Huge pages where the kernel offers them on request
+// (transparent_hugepage = madvise): one fault per 2 MiB.
+void advise_huge_pages(const void* data, size_t bytes) {
+  constexpr uintptr_t kHuge = uintptr_t{2} << 20;
+  const uintptr_t lo = (reinterpret_cast<uintptr_t>(data) + kHuge - 1) & ~(kHuge - 1);
+  const uintptr_t hi = (reinterpret_cast<uintptr_t>(data) + bytes) & ~(kHuge - 1);
+  if (hi > lo) (void)madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_HUGEPAGE);
+}
 // Per world cell: owner_ here, the caster's marks and per-cell incidence cache.
 constexpr uint64_t kPerCellOverhead = sizeof(uint32_t) + sizeof(uint32_t) + 48;
 
@@ -28,17 +43,6 @@ uint64_t charge_of(const Scene& s, const KdTree& t) {
 
 }  // namespace
 
-// Where a grafted cell's pieces live in the world's arrays (each a contiguous range: a graft
-// appends to every array at once, so ranges of later grafts lie after earlier ones).
-struct PagedWorld::Graft {
-  uint32_t cell = 0;                     // store cell
-  uint32_t node0 = 0, nodes = 0;         // tree nodes
-  uint32_t cell0 = 0, cells = 0;         // world cells
-  uint32_t ref0 = 0, refs = 0;           // references (and their bounds)
-  uint32_t prim0 = 0, prims = 0;         // scene.prims
-  std::array<uint32_t, 5> kind0{}, kinds{};  // per PrimKind array ranges
-  uint64_t bytes = 0;
-};
 
 // What one sync() call did so far.
 struct PagedWorld::SyncPass {
@@ -48,17 +52,6 @@ struct PagedWorld::SyncPass {
   std::vector<uint32_t> grafted;
 };
 
-struct PagedWorld::Decoded {
-  uint32_t cell = 0;
-  // Not decoded: the page left the cache between ready() and try_pin(), or the deadline came
-  // before its turn. Wanted again.
-  bool retry = false;
-  bool skipped = false;  // not decoded: it would not fit (hopeless())
-  Status status;
-  Scene scene;
-  KdTree tree;
-  uint64_t bytes = 0;
-};
 
 PagedWorld::PagedWorld(const StoreModel& model, const PagedWorldOptions& options)
     : model_(model), cell_build_(options.cell_build), budget_(options.budget_bytes) {
@@ -105,6 +98,7 @@ PagedWorld::PagedWorld(const StoreModel& model, const PagedWorldOptions& options
   const uint64_t share = std::min<uint64_t>(decoded_budget, uint64_t{16} << 30);
   auto reserve = [&](auto& v, uint64_t bytes_per_item) {
     v.reserve(v.size() + static_cast<size_t>(share / bytes_per_item) + 1);
+    advise_huge_pages(v.data(), v.capacity() * sizeof(v[0]));
   };
   const uint64_t per_cell = sizeof(KdTree::Cell) + kPerCellOverhead;
   reserve(tree_.cells_, per_cell);
@@ -114,21 +108,28 @@ PagedWorld::PagedWorld(const StoreModel& model, const PagedWorldOptions& options
   reserve(tree_.ref_bounds_, sizeof(uint32_t) + sizeof(Aabb));
   reserve(scene_.prims, sizeof(PrimRef) + sizeof(Sphere));  // the smallest primitive
   reserve(scene_.triangles, sizeof(PrimRef) + sizeof(Triangle));
+  open_proxies();
+  start_decoder();
 }
 
-PagedWorld::~PagedWorld() = default;
+PagedWorld::~PagedWorld() { stop_decoder(); }
 
 void PagedWorld::want(int32_t cell) {
   const auto c = static_cast<size_t>(cell);
   if (c >= top_cells_ || wanted_flag_[c].exchange(1, std::memory_order_acq_rel) != 0) return;
   std::lock_guard<std::mutex> lock(wanted_mutex_);
   wanted_.push_back(static_cast<uint32_t>(c));
+  if (!proxy_.empty()) {
+    request_proxies(static_cast<uint32_t>(c));
+    if (detail_node(static_cast<uint32_t>(c)) >= 0) return;  // a proxy will draw it (sync())
+  }
   cache_->request(model_.cells()[c].page);
 }
 
 size_t PagedWorld::pending() const {
   std::lock_guard<std::mutex> lock(wanted_mutex_);
-  return wanted_.size();
+  std::lock_guard<std::mutex> dl(decoder_->mutex);
+  return wanted_.size() + decoder_->in_flight + decoder_->done.size();
 }
 
 void PagedWorld::decode(uint32_t cell, Decoded& out) const {
@@ -175,8 +176,9 @@ bool PagedWorld::unlink_oldest(uint64_t target) {
 bool PagedWorld::evict_for(uint64_t bytes, const std::vector<uint32_t>& keep) {
   const uint64_t budget = lru_.budget();
   if (bytes > budget) return false;
-  if (lru_.bytes() + garbage_bytes_ + bytes <= budget) return true;
-  const uint64_t target = budget - bytes;
+  if (lru_.bytes() + held_besides_cells() + bytes <= budget) return true;
+  if (bytes + proxy_bytes_ > budget) return false;
+  const uint64_t target = budget - bytes - proxy_bytes_;
   if (!unlink_oldest(target)) {
     // Every cell left was touched in this frame: they go too, in ascending order (the LRU's
     // order among cells of one frame), except those grafted by this sync.
@@ -187,17 +189,21 @@ bool PagedWorld::evict_for(uint64_t bytes, const std::vector<uint32_t>& keep) {
     }
   }
   if (lru_.bytes() > target) return false;
-  if (lru_.bytes() + garbage_bytes_ + bytes > budget) compact();
+  if (lru_.bytes() + held_besides_cells() + bytes > budget) compact();
   return true;
 }
 
-std::vector<uint32_t> PagedWorld::take_ready() {
+std::vector<uint32_t> PagedWorld::take_ready(bool take) {
   std::vector<uint32_t> ready;
   std::lock_guard<std::mutex> lock(wanted_mutex_);
   std::vector<uint32_t> waiting;
   for (const uint32_t c : wanted_) {
     const uint64_t page = model_.cells()[c].page;
     if (cache_->ready(page) || cache_->failed(page)) {
+      if (!take) {
+        waiting.push_back(c);
+        continue;
+      }
       ready.push_back(c);
     } else {
       cache_->request(page);  // no-op while queued or loading; again if it was evicted unread
@@ -212,7 +218,7 @@ std::vector<uint32_t> PagedWorld::take_ready() {
 // when it is known (from an earlier page-in) to fit, the others are dropped undecoded.
 bool PagedWorld::hopeless(uint32_t cell) const {
   const uint64_t size = decoded_size_[cell];
-  return !dropped_.empty() && (size == 0 || lru_.bytes() + garbage_bytes_ + size > lru_.budget());
+  return !dropped_.empty() && (size == 0 || lru_.bytes() + held_besides_cells() + size > lru_.budget());
 }
 
 // Where one decoded (or not decoded) cell goes: grafted, back to the wanted list, failed, or
@@ -229,7 +235,7 @@ void PagedWorld::place(Decoded& d, bool evict, SyncPass& pass) {
     missing_[d.cell] = 0;
     ++counters_.page_errors;
     pass.changed = true;
-  } else if (lru_.bytes() + garbage_bytes_ + d.bytes <= lru_.budget() ||
+  } else if (lru_.bytes() + held_besides_cells() + d.bytes <= lru_.budget() ||
              (evict && evict_for(d.bytes, pass.grafted))) {
     graft(d);
     pass.grafted.push_back(d.cell);
@@ -250,9 +256,34 @@ void PagedWorld::place(Decoded& d, bool evict, SyncPass& pass) {
 
 bool PagedWorld::sync_impl(std::chrono::steady_clock::time_point deadline, bool evict) {
   const auto start = std::chrono::steady_clock::now();
-  const std::vector<uint32_t> ready = take_ready();
-  if (ready.empty()) return false;
   SyncPass pass;
+  if (!proxy_.empty() && load_proxies(deadline)) pass.changed = refine_arrived() || pass.changed;
+  // What the decoder finished, then stand-ins for what is still missing, then what is ready
+  // and not taken by the decoder, decoded here until the deadline.
+  std::vector<Decoded> ahead = take_decoded();
+  // In the decoder's order (most pixels first), until the deadline: the rest stay decoded for
+  // the next call.
+  size_t placed = 0;
+  for (; placed < ahead.size(); ++placed) {
+    if (placed > 0 && std::chrono::steady_clock::now() >= deadline) break;
+    Decoded& d = ahead[placed];
+    if (slot_[d.cell] >= 0) continue;  // already resident
+    if (!evict && hopeless(d.cell)) d.skipped = true;
+    place(d, evict, pass);
+  }
+  if (placed < ahead.size()) {
+    keep_decoded(std::make_move_iterator(ahead.begin() + std::ptrdiff_t(placed)), std::make_move_iterator(ahead.end()));
+    ahead.resize(placed);
+  }
+  if (!pass.later.empty()) {
+    std::lock_guard<std::mutex> lock(wanted_mutex_);
+    wanted_.insert(wanted_.end(), pass.later.begin(), pass.later.end());
+    pass.later.clear();
+  }
+  if (!proxy_.empty() && stand_in_wanted(deadline)) pass.changed = true;
+  // In frames that stand in for missing cells, the decoder thread decodes alone: the frame's
+  // thread only grafts (a stand-in covers what is not in yet).
+  const std::vector<uint32_t> ready = take_ready(!stand_in_missing_ || decoder_blocked());
   const size_t batch = std::max<size_t>(4, 2 * static_cast<size_t>(tbb::info::default_concurrency()));
   for (size_t b = 0; b < ready.size(); b += batch) {
     if (pass.full || std::chrono::steady_clock::now() >= deadline) {
@@ -284,23 +315,45 @@ bool PagedWorld::sync_impl(std::chrono::steady_clock::time_point deadline, bool 
     std::lock_guard<std::mutex> lock(wanted_mutex_);
     wanted_.insert(wanted_.end(), pass.later.begin(), pass.later.end());
   }
+  publish_room();
+  if (ready.empty() && ahead.empty() && !pass.changed) return false;
   counters_.decode_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return pass.changed;
 }
 
 double PagedWorld::wait_for_pages(std::chrono::steady_clock::time_point deadline) {
   const auto start = std::chrono::steady_clock::now();
+  // With stand-ins the decoder does the decoding, and it may be waiting for the room the next
+  // sync() publishes: never wait long without one.
+  if (stand_in_missing_) deadline = std::min(deadline, start + std::chrono::milliseconds(20));
   while (std::chrono::steady_clock::now() < deadline) {
     {
       std::lock_guard<std::mutex> lock(wanted_mutex_);
-      if (wanted_.empty()) break;
+      bool blocked = false;
+      {
+        std::lock_guard<std::mutex> dl(decoder_->mutex);
+        if (!decoder_->done.empty()) break;
+        if (wanted_.empty() && decoder_->in_flight == 0) break;
+        blocked = decoder_->blocked;
+      }
+      // A page in the cache is news only to a sync() that decodes (not in frames that stand in
+      // for missing cells: the decoder takes it); so is a proxy page.
       bool any = false;
-      for (const uint32_t c : wanted_) {
-        const uint64_t page = model_.cells()[c].page;
+      const bool decodes_here = !stand_in_missing_ || blocked;
+      for (size_t k = 0; k < wanted_.size() && !any; ++k) {
+        const uint64_t page = model_.cells()[wanted_[k]].page;
         if (cache_->ready(page) || cache_->failed(page)) {
-          any = true;
-          break;
+          any = decodes_here;
+        } else if (proxy_.empty() || detail_node(wanted_[k]) < 0) {
+          // Evicted unread (the page cache made room for later pages), or put back by the
+          // decoder after its page went: asked for again, else nothing would bring it (a cell
+          // a proxy draws for detail is not read, as in want()).
+          cache_->request(page);
         }
+      }
+      for (size_t k = 0; k < proxy_wanted_.size() && !any; ++k) {
+        const uint64_t page = model_.proxy(proxy_wanted_[k])->page;
+        any = cache_->ready(page) || cache_->failed(page);
       }
       if (any) break;
     }
@@ -309,7 +362,7 @@ double PagedWorld::wait_for_pages(std::chrono::steady_clock::time_point deadline
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
-void PagedWorld::graft(Decoded& d) {
+PagedWorld::Graft PagedWorld::append(const Decoded& d, const std::array<int32_t, 6>& ropes, uint32_t owner) {
   const KdTree& sub = d.tree;
   Graft g;
   g.cell = d.cell;
@@ -324,12 +377,16 @@ void PagedWorld::graft(Decoded& d) {
   g.kind0 = {uint32_t(scene_.triangles.size()), uint32_t(scene_.spheres.size()), uint32_t(scene_.boxes.size()),
              uint32_t(scene_.cones.size()), uint32_t(scene_.quadrics.size())};
   g.bytes = d.bytes;
+  g.stand_in = d.stand_in >= 0;
   for (uint32_t i = 0; i < d.scene.size(); ++i) scene_.add_from(d.scene, i);
+  if (g.stand_in || !stand_in_prim_.empty()) {
+    stand_in_prim_.resize(g.prim0, 0);
+    stand_in_prim_.resize(scene_.prims.size(), g.stand_in ? 1 : 0);
+  }
   g.kinds = {uint32_t(scene_.triangles.size()) - g.kind0[0], uint32_t(scene_.spheres.size()) - g.kind0[1],
              uint32_t(scene_.boxes.size()) - g.kind0[2], uint32_t(scene_.cones.size()) - g.kind0[3],
              uint32_t(scene_.quadrics.size()) - g.kind0[4]};
 
-  const KdTree::Cell placeholder = tree_.cells_[d.cell];
   for (KdTree::Node n : sub.nodes_) {
     n.child += n.is_leaf() ? g.cell0 : g.node0;
     tree_.nodes_.push_back(n);
@@ -337,14 +394,21 @@ void PagedWorld::graft(Decoded& d) {
   for (KdTree::Cell c : sub.cells_) {
     c.first += g.ref0;
     for (int f = 0; f < 6; ++f) {
-      c.rope[f] = c.rope[f] == KdTree::kNone ? placeholder.rope[f] : c.rope[f] + static_cast<int32_t>(g.node0);
+      c.rope[f] = c.rope[f] == KdTree::kNone ? ropes[size_t(f)] : c.rope[f] + static_cast<int32_t>(g.node0);
     }
     tree_.cells_.push_back(c);
-    owner_.push_back(d.cell);
+    owner_.push_back(owner);
   }
   for (uint32_t r : sub.refs_) tree_.refs_.push_back(r + g.prim0);
   tree_.ref_bounds_.insert(tree_.ref_bounds_.end(), sub.ref_bounds_.begin(), sub.ref_bounds_.end());
   tree_.depth_ = std::max<uint32_t>(tree_.depth_, model_.depth() + sub.depth_);
+  return g;
+}
+
+void PagedWorld::graft(Decoded& d) {
+  std::array<int32_t, 6> ropes;
+  for (int f = 0; f < 6; ++f) ropes[size_t(f)] = tree_.cells_[d.cell].rope[f];
+  const Graft g = append(d, ropes, d.cell);
 
   KdTree::Node& leaf = tree_.nodes_[leaf_node_[d.cell]];
   leaf.axis_or_leaf = 4;
@@ -360,29 +424,37 @@ void PagedWorld::graft(Decoded& d) {
   counters_.primitives_paged_in += g.prims;
 }
 
+// Keeps live_ dense: moves the last graft into slot s; its arrays become garbage.
+void PagedWorld::remove_graft(int32_t s) {
+  garbage_bytes_ += live_[size_t(s)].bytes;
+  live_[size_t(s)] = live_.back();
+  const Graft& moved = live_[size_t(s)];
+  if (moved.stand_in) {
+    proxy_[moved.cell].graft = s;
+  } else {
+    slot_[moved.cell] = s;
+  }
+  live_.pop_back();
+}
+
 void PagedWorld::unlink(uint32_t cell) {
   const int32_t s = slot_[cell];
   if (s < 0) return;
-  const Graft g = live_[size_t(s)];
   KdTree::Node& leaf = tree_.nodes_[leaf_node_[cell]];
   leaf.axis_or_leaf = 3;
   leaf.child = cell;
   missing_[cell] = 1;
   wanted_flag_[cell].store(0, std::memory_order_release);
-  // Keep live_ dense: move the last graft into the hole.
-  live_[size_t(s)] = live_.back();
-  slot_[live_[size_t(s)].cell] = s;
-  live_.pop_back();
+  remove_graft(s);
   slot_[cell] = -1;
   lru_.erase(cell);
-  garbage_bytes_ += g.bytes;
   ++counters_.cells_evicted;
 }
 
 void PagedWorld::note_touched(const CellMarks& marks) {
   const size_t n = std::min(marks.size(), owner_.size());
   for (size_t c = 0; c < n; ++c) {
-    if (marks.marked(static_cast<int32_t>(c))) lru_.touch(owner_[c]);
+    if (marks.marked(static_cast<int32_t>(c)) && owner_[c] < top_cells_) lru_.touch(owner_[c]);
   }
 }
 
@@ -399,7 +471,7 @@ std::vector<uint32_t> PagedWorld::image_cells(const CellMarks& marks) const {
   for (const uint32_t s : lru_.touched_cells()) add(s);
   const size_t n = std::min(marks.size(), owner_.size());
   for (size_t c = 0; c < n; ++c) {
-    if (marks.marked(static_cast<int32_t>(c))) add(owner_[c]);
+    if (marks.marked(static_cast<int32_t>(c)) && owner_[c] < top_cells_) add(owner_[c]);
   }
   std::sort(out.begin(), out.end());
   return out;
@@ -407,6 +479,7 @@ std::vector<uint32_t> PagedWorld::image_cells(const CellMarks& marks) const {
 
 uint64_t PagedWorld::end_frame(const CellMarks& marks) {
   note_touched(marks);
+  if (!proxy_.empty()) note_drawn(marks);
   touched_bytes_ = lru_.touched_bytes();
   const std::vector<uint32_t> cells = image_cells(CellMarks());
   working_set_bytes_ = 0;
@@ -429,9 +502,12 @@ void PagedWorld::begin_frame(CellMarks& marks) {
   // Keep a quarter of the decoded share free for the cells this frame pages in: when live
   // cells and garbage fill more than three quarters, unlink the least recently touched down
   // to half and compact. (No cell is touched in the new frame yet: all may go.)
+  if (!proxy_.empty()) review_stand_ins();
   const uint64_t budget = lru_.budget();
-  if (lru_.bytes() + garbage_bytes_ > budget / 4 * 3) unlink_oldest(budget / 2);
-  if (garbage_bytes_ > 0 && lru_.bytes() + garbage_bytes_ > budget / 4 * 3) compact();
+  if (lru_.bytes() + held_besides_cells() > budget / 4 * 3) {
+    unlink_oldest(budget / 2 > proxy_bytes_ ? budget / 2 - proxy_bytes_ : 0);
+  }
+  if (garbage_bytes_ > 0 && lru_.bytes() + held_besides_cells() > budget / 4 * 3) compact();
   marks.resize(tree_.cells_.size());
 }
 
@@ -439,7 +515,7 @@ bool PagedWorld::reclaim_untouched(CellMarks& marks) {
   note_touched(marks);
   std::vector<uint32_t> stale;
   for (const Graft& g : live_) {
-    if (!lru_.touched(g.cell)) stale.push_back(g.cell);
+    if (!g.stand_in && !lru_.touched(g.cell)) stale.push_back(g.cell);
   }
   if (stale.empty() && garbage_bytes_ == 0) return false;
   for (const uint32_t c : stale) unlink(c);
@@ -459,6 +535,7 @@ uint64_t PagedWorld::release_pass(CellMarks& marks) {
     earlier_cells_.push_back(c);
   }
   lru_.begin_frame();
+  if (!proxy_.empty()) release_proxy_grafts();
   while (!live_.empty()) unlink(live_.back().cell);
   compact();
   forget_dropped();
@@ -514,6 +591,7 @@ void PagedWorld::compact() {
       tree_.refs_[r] = static_cast<uint32_t>(int64_t(tree_.refs_[r]) + prim_delta);
     }
     slide(scene_.prims, g.prim0, prim_at, g.prims);
+    if (!stand_in_prim_.empty()) slide(stand_in_prim_, g.prim0, prim_at, g.prims);
     for (uint32_t p = prim_at; p < prim_at + g.prims; ++p) {
       PrimRef& ref = scene_.prims[p];
       ref.index = static_cast<uint32_t>(int64_t(ref.index) + kind_delta[size_t(ref.kind)]);
@@ -527,7 +605,11 @@ void PagedWorld::compact() {
       // Normals are either absent or one per triangle: they move with the triangles.
       slide(scene_.triangle_normals, g.kind0[0], kind_at[0], g.kinds[0]);
     }
-    tree_.nodes_[leaf_node_[g.cell]].child = node_at;
+    if (g.stand_in) {
+      if (proxy_[g.cell].link != kLinkNone) tree_.nodes_[g.cell].child = node_at;
+    } else {
+      tree_.nodes_[leaf_node_[g.cell]].child = node_at;
+    }
     g.node0 = node_at;
     g.cell0 = cell_at;
     g.ref0 = ref_at;
@@ -545,6 +627,7 @@ void PagedWorld::compact() {
   tree_.refs_.resize(ref_at);
   tree_.ref_bounds_.resize(ref_at);
   scene_.prims.resize(prim_at);
+  if (!stand_in_prim_.empty()) stand_in_prim_.resize(prim_at);
   scene_.triangles.resize(kind_at[0]);
   scene_.spheres.resize(kind_at[1]);
   scene_.boxes.resize(kind_at[2]);
@@ -555,7 +638,9 @@ void PagedWorld::compact() {
   ++generation_;
 }
 
-size_t PagedWorld::resident_cells() const { return live_.size(); }
+size_t PagedWorld::resident_cells() const {
+  return size_t(std::count_if(live_.begin(), live_.end(), [](const Graft& g) { return !g.stand_in; }));
+}
 
 PagingCounters PagedWorld::take_counters() {
   PagingCounters c = counters_;

@@ -29,9 +29,40 @@
 // them is its working set (image_cells(), working_set_bytes()), and a cell grafted twice in
 // one image counts as re-read (PagingCounters::cells_reread).
 //
+// Stand-ins (DESIGN.md "proxy at every interior node"; the store's `proxies` section). When the
+// store has proxies, an interior node of the top tree may be drawn by its PROXY instead of what
+// lies below it: the node becomes a link to a subtree built over the proxy's triangles in the
+// node's region (once per proxy), so every ray that reaches the region goes through the proxy
+// until it leaves the node. A whole node, never part of one: meshoptimizer kept the proxy's
+// borders, so it meets its neighbours' surfaces (pages or proxies) without cracks, while a
+// proxy beside a page inside one node would leave a step rays fall through. Two reasons, set
+// per frame by set_detail():
+//   detail   the node's error bound projects to less than `pixel_error` pixels at the point of
+//            its region nearest the eye: the pages below are not wanted (the highest such node
+//            with a resident proxy is linked);
+//   missing  frames that may show what they have (a time or sample budget, no sync paging): a
+//            wanted cell's deepest ancestor with a resident proxy is linked until it can be
+//            drawn finer — never nothing. At each frame's start a linked node its rays reached
+//            is refined (refine()): its children's proxies are requested, the pages of a node
+//            of a few cells wanted, and once both children can be drawn without it (a page, a
+//            proxy, or both of their children so) it is replaced by them. Linked nodes no ray
+//            reached in the last image are unlinked.
+// The root's proxy is read when the world opens; other proxies are requested (through the page
+// cache) one level at a time and decoded in sync(). Decoded proxies and their subtrees are
+// charged to the decoded share (at most a sixteenth of it, least recently used dropped first).
+// With pixel_error 0 and no missing stand-ins (sync paging, or frames run to completion)
+// nothing stands in: the exact renderer.
+//
+// Decoding ahead. A decoder thread takes wanted cells whose pages have arrived, the one that
+// spans the most pixels from the current eye first (cell size over distance), decodes and
+// refines them off the frame, and leaves them for sync(), which only grafts them (O(cell)).
+// What it holds decoded stays below a sixteenth of the decoded share and below the room the
+// world had at the last sync(); a decode that does not fit is dropped and its cell wanted
+// again. sync() also decodes ready pages itself, in parallel, until its deadline.
+//
 // Threads: missing() and want() are called by render workers while a frame slice runs; every
 // other call is made by the owner between slices (no slice running). I/O runs on the cache's
-// loader thread; decoding and subtree builds run in parallel inside sync().
+// loader thread; the decoder thread shares only wanted_ (wanted_mutex_) and its own state.
 #pragma once
 
 #include "src/engine/cell_gate.h"
@@ -39,6 +70,7 @@
 #include "src/engine/kdtree.h"
 #include "src/core/sample_buffer.h"
 #include "src/core/scene.h"
+#include "src/core/view.h"
 #include "src/paging/cell_lru.h"
 #include "src/paging/store_model.h"
 #include "store/page_cache.h"
@@ -47,6 +79,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <iterator>
 #include <memory>
 #include <mutex>
 #include <vector>
@@ -67,7 +100,18 @@ struct PagingCounters {
   uint64_t page_errors = 0;     // pages that failed (each at most once)
   uint64_t primitives_paged_in = 0;
   uint64_t cells_reread = 0;    // cells grafted again in the same image (released in between)
-  double decode_ms = 0.0;       // wall time of decode + subtree build + graft in sync()
+  uint64_t stand_ins = 0;       // stand-ins grafted (see the top of this file)
+  uint64_t proxies_loaded = 0;  // proxy pages decoded
+  double decode_ms = 0.0;       // wall time of sync() (on the frame's thread): placing, decoding, grafting
+  double decode_ahead_ms = 0.0; // decoder thread time spent decoding cells sync() placed since
+};
+
+// What stood in for the cells an image touched (PagedWorld::stand_in_report).
+struct StandInReport {
+  uint64_t proxy_nodes = 0;    // distinct top nodes whose proxies the frame's rays entered
+  uint64_t missing_nodes = 0;  // of those, nodes standing in for cells whose pages were missing
+  uint64_t detail_cells = 0;   // store cells the rays reached drawn by a proxy for detail (pixel error)
+  uint64_t missing_cells = 0;  // store cells the rays reached drawn by a proxy while their pages were missing
 };
 
 class PagedWorld final : public CellGate {
@@ -101,7 +145,9 @@ class PagedWorld final : public CellGate {
   bool sync_evicting();
   uint64_t generation() const { return generation_; }
   // Records that the current frame used store cell `c` (LRU), for renderers without CellMarks.
-  void touch(uint32_t store_cell) { lru_.touch(store_cell); }
+  void touch(uint32_t store_cell) {
+    if (store_cell < top_cells_) lru_.touch(store_cell);
+  }
   // Bytes store cell c took decoded and refined when it was last paged in (0: never was).
   uint64_t decoded_size(uint32_t store_cell) const { return decoded_size_[store_cell]; }
   // Store cells touched (or paged in) since the last begin_frame().
@@ -134,7 +180,8 @@ class PagedWorld final : public CellGate {
   // The smallest budget_bytes whose decoded share holds `decoded_bytes` (the inverse of the
   // split between compressed pages and decoded cells), rounded up to a MiB.
   static uint64_t budget_for(uint64_t decoded_bytes);
-  // The store cell a world cell belongs to.
+  // The store cell a world cell belongs to (kNoOwner: a proxy's subtree).
+  static constexpr uint32_t kNoOwner = UINT32_MAX;
   uint32_t store_cell(int32_t world_cell) const { return owner_[size_t(world_cell)]; }
   bool resident(uint32_t store_cell) const { return slot_[store_cell] >= 0; }
   // Asked for (by want()) and not grafted, failed or dropped since.
@@ -142,6 +189,27 @@ class PagedWorld final : public CellGate {
     return wanted_flag_[store_cell].load(std::memory_order_acquire) != 0 && slot_[store_cell] < 0 &&
            failed_[store_cell] == 0;
   }
+
+  // Stand-ins for the next frame (call before begin_frame()): the view, the pixel error below
+  // which a proxy draws a cell instead of its page (0: never), and whether cells whose pages are
+  // missing are drawn by an ancestor's proxy meanwhile. Stand-ins that no longer qualify are
+  // unlinked at begin_frame().
+  void set_detail(const View& view, double pixel_error, bool stand_in_missing);
+  bool has_proxies() const { return !proxy_.empty(); }
+  // World primitive `p` belongs to a stand-in (now or when it was confirmed: unlinked stand-ins'
+  // primitives keep their flag until compact()).
+  bool stand_in_prim(uint32_t p) const { return p < stand_in_prim_.size() && stand_in_prim_[p] != 0; }
+  // Store cell `c` is drawn by an ancestor's proxy now.
+  bool stood_in(uint32_t c) const { return !proxy_.empty() && link_above(leaf_node_[c]) >= 0; }
+  // Top nodes drawn by their proxies now.
+  const std::vector<uint32_t>& linked_nodes() const { return linked_nodes_; }
+  // Stand-ins replaced by their pages (or by a finer proxy) so far: an image that showed
+  // stand-ins is out of date once this grows.
+  uint64_t stand_ins_replaced() const { return stand_ins_replaced_; }
+  // What stood in for the cells the current pass reached (`marks`: the caster's).
+  StandInReport stand_in_report(const CellMarks& marks) const;
+  // Decoded proxies' bytes (within the decoded share).
+  uint64_t proxy_bytes() const { return proxy_bytes_; }
 
   PagingCounters take_counters();
   uint64_t budget_bytes() const { return budget_; }
@@ -151,7 +219,7 @@ class PagedWorld final : public CellGate {
   uint64_t touched_bytes() const { return touched_bytes_; }
   // Compressed pages held by the cache plus decoded cells: never above budget_bytes() after
   // sync() returns (the cache's own rule: see store/page_cache.h).
-  uint64_t resident_bytes() const { return cache_->resident_bytes() + lru_.bytes(); }
+  uint64_t resident_bytes() const { return cache_->resident_bytes() + lru_.bytes() + proxy_bytes_; }
   uint64_t pinned_bytes() const { return cache_->pinned_bytes(); }
   store::PageCacheStats cache_stats() const { return cache_->stats(); }
   size_t resident_cells() const;
@@ -162,9 +230,13 @@ class PagedWorld final : public CellGate {
   struct Graft;
   struct Decoded;
   struct SyncPass;
+  struct ProxySlot;
+  struct DecoderState;
   void decode(uint32_t cell, Decoded& out) const;
   bool sync_impl(std::chrono::steady_clock::time_point deadline, bool evict);
-  std::vector<uint32_t> take_ready();
+  // Takes the wanted cells whose pages arrived (or failed) off the list (`take`; else leaves
+  // them) and asks again for the pages of the others (no-op while queued or loading).
+  std::vector<uint32_t> take_ready(bool take = true);
   bool hopeless(uint32_t cell) const;
   void place(Decoded& d, bool evict, SyncPass& pass);
   // Unlinks live cells other than `keep` (LRU first) and compacts until `bytes` more fit.
@@ -173,9 +245,86 @@ class PagedWorld final : public CellGate {
   // are live. False when the cells left (all touched in this frame) still take more.
   bool unlink_oldest(uint64_t target);
   void graft(Decoded& d);
+  // Appends a decoded subtree to the world's arrays; its faces on the root's boundary get
+  // `ropes`, its world cells the owner `owner`.
+  Graft append(const Decoded& d, const std::array<int32_t, 6>& ropes, uint32_t owner);
+  void remove_graft(int32_t slot);
   void unlink(uint32_t cell);
   void note_touched(const CellMarks& marks);
   void forget_dropped();
+  // Decoded bytes held in the decoded share besides live cells: garbage and proxies.
+  uint64_t held_besides_cells() const { return garbage_bytes_ + proxy_bytes_; }
+
+  // Decoding ahead (paged_world_decoder.cpp).
+  static constexpr uint64_t kDecodeAheadShareDivisor = 16;
+  void start_decoder();
+  void stop_decoder();
+  void decoder_loop();
+  // Takes up to `count` ready cells off wanted_, those to decode first.
+  std::vector<uint32_t> pick_ready(const Vec3& eye, bool has_eye, size_t count);
+  static constexpr size_t kDecodeBatch = 4;
+  // Tells the decoder how much room the decoded share has now.
+  void publish_room();
+  void set_decode_eye(const Vec3& eye);
+  // The decoder waits for room the last sync() did not publish: the frame's thread decodes.
+  bool decoder_blocked() const;
+  std::vector<Decoded> take_decoded();
+  // Gives back decoded cells sync() had no time to place.
+  void keep_decoded(std::move_iterator<std::vector<Decoded>::iterator> first,
+                    std::move_iterator<std::vector<Decoded>::iterator> last);
+
+  // Stand-ins (paged_world_stand_in.cpp).
+  void open_proxies();
+  // Requests the proxy pages of `cell`'s ancestors up to the nearest one resident (wanted_mutex_ held).
+  void request_proxies(uint32_t cell);
+  // The node whose proxy draws `cell` for detail (-1: none qualifies).
+  int32_t detail_node(uint32_t cell) const;
+  // The deepest ancestor of `cell` with a resident proxy (-1: none).
+  int32_t nearest_proxy(uint32_t cell) const;
+  // Pixels node `node`'s error bound spans at the point of its region nearest the eye.
+  double pixels_of(uint32_t node) const;
+  // `node` has a resident proxy whose error stays below the pixel error (node_pixels_).
+  bool detail_ok(int32_t node) const;
+  // Decodes the proxies whose pages arrived; true when one did.
+  bool load_proxies(std::chrono::steady_clock::time_point deadline);
+  void drop_proxies_over_budget();
+  // Wanted cells get the node that draws them linked: for detail (they leave the wanted list),
+  // or, in frames that stand in for missing cells, while their pages are missing. True when the
+  // tree changed.
+  bool stand_in_wanted(std::chrono::steady_clock::time_point deadline);
+  static constexpr uint8_t kLinkNone = 0, kLinkDetail = 1, kLinkMissing = 2;
+  // Links top node `node` to its proxy's subtree (grafting it once) for reason `why`, unlinking
+  // linked nodes below it. False when nothing changed (already linked, or no room).
+  bool link_node(uint32_t node, uint8_t why);
+  void unlink_node(uint32_t node);
+  // Sets the tree's cover of the nodes below `node` (the outermost linked ancestor of each), so
+  // that a rope into a linked node's region goes through the link (after node links or unlinks).
+  void cover_subtree(uint32_t node);
+  // The linked node at or above top node `node` (-1: none).
+  int32_t link_above(uint32_t node) const;
+  // Every cell under `node` is resident, failed or empty.
+  bool complete_below(uint32_t node) const;
+  // `node` can be drawn without its ancestors' proxies (see "Stand-ins").
+  bool drawable(uint32_t node) const;
+  void link_children(uint32_t node);
+  void refine(uint32_t node);
+  // Replaces linked nodes whose children can be drawn now (proxies that arrived). True when it did.
+  bool refine_arrived();
+  // Subtrees of at most this many cells have their pages wanted when their node is linked for
+  // missing pages (rays never reach them while it is).
+  static constexpr uint32_t kRefineCells = 8;
+  // Records which linked nodes the image's rays reached (end_frame()).
+  void note_drawn(const CellMarks& marks);
+  // Grafts node `node`'s proxy as a subtree over its region (once); false when it does not fit.
+  bool graft_proxy(uint32_t node);
+  std::array<int32_t, 6> node_ropes(uint32_t node) const;
+  // Appends the store cells under top node `node` whose regions overlap `box`.
+  void cells_under(uint32_t node, const Aabb& box, std::vector<uint32_t>& out) const;
+  void drop_proxy(uint32_t node);
+  // Unlinks the node and removes its proxy's subtree (the decoded proxy stays).
+  void release_proxy_graft(uint32_t node);
+  void release_proxy_grafts();
+  void review_stand_ins();
 
   const StoreModel& model_;
   std::unique_ptr<store::StorePageSource> source_;
@@ -205,11 +354,28 @@ class PagedWorld final : public CellGate {
   std::vector<uint64_t> decoded_size_;   // store cell -> bytes when last grafted
   uint64_t generation_ = 0;              // compactions so far
 
+  // Stand-ins.
+  std::vector<ProxySlot> proxy_;         // per top node; empty when the store has no proxies
+  std::vector<int32_t> parent_;          // per top node (-1: the root)
+  std::vector<uint32_t> subtree_end_;    // per top node: one past its subtree (preorder)
+  std::vector<uint32_t> leaves_under_;   // per top node: cells in its subtree
+  std::vector<uint32_t> linked_nodes_;   // top nodes that are links to their proxies now
+  std::vector<uint8_t> stand_in_prim_;   // world primitive -> belongs to a stand-in
+  std::vector<uint32_t> proxy_wanted_;   // nodes whose proxy pages were requested, not decoded
+  uint64_t proxy_bytes_ = 0;
+  uint64_t proxy_use_ = 0;               // stamps for proxy LRU
+  uint64_t stand_ins_replaced_ = 0;
+  View detail_view_;
+  std::vector<double> node_pixels_;      // per top node, pixels_of() for detail_view_
+  double pixel_error_ = 0.0;
+  bool stand_in_missing_ = false;
+
   std::unique_ptr<std::atomic<uint8_t>[]> wanted_flag_;  // store cell: in wanted_ already
   mutable std::mutex wanted_mutex_;
   std::vector<uint32_t> wanted_;
 
   PagingCounters counters_;
+  std::unique_ptr<DecoderState> decoder_;  // last: its thread stops first
 };
 
 }  // namespace frontier

@@ -210,6 +210,25 @@ ProxyMesh simplify_proxy(const ProxyMesh& input, const ProxyOptions& options, Pr
                                   input.positions.size(), stride, 3 * target, FLT_MAX, meshopt_SimplifyLockBorder,
                                   &error);
   if (count == 0 || count > 6 * target) {
+    // The locked border alone keeps it above twice the target (a big node's long cut edge):
+    // unlocked, the simplifier may move border vertices along the border, opening slits between
+    // this proxy and its neighbours no wider than its bound, but never a hole in the surface.
+    std::vector<uint32_t> unlocked(input.indices.size());
+    float unlocked_error = 0.0f;
+    const size_t n = meshopt_simplify(unlocked.data(), input.indices.data(), input.indices.size(),
+                                      local_positions.data(), input.positions.size(), stride, 3 * target, FLT_MAX, 0,
+                                      &unlocked_error);
+    if (n > 0 && (count == 0 || n < count)) {
+      kept = std::move(unlocked);
+      count = n;
+      error = unlocked_error;
+      st.unlocked = true;
+    }
+  }
+  if (count == 0 || count > 12 * target) {
+    // Clustering, the last resort (unlocked still above four times the target: a node of
+    // disconnected parts, or one whose children's borders moved apart): reaches any size but
+    // keeps no topology, so it opens holes.
     std::vector<uint32_t> sloppy(input.indices.size());
     float sloppy_error = 0.0f;
     const size_t n = meshopt_simplifySloppy(sloppy.data(), input.indices.data(), input.indices.size(),

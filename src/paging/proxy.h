@@ -10,7 +10,9 @@
 //   node   merge_proxies(lower, upper): both children's meshes welded, exact duplicate triangles
 //          (a primitive straddling cells is stored in each) dropped; the bound is the larger one.
 //          simplify_proxy(merged): meshoptimizer's simplifier with locked borders (so sibling
-//          proxies meet), sloppy clustering when that cannot get within twice the target.
+//          proxies meet), unlocked when the border alone keeps it above twice the target (no
+//          hole; the border may move within the bound), sloppy clustering only when even that
+//          cannot get there (it opens holes a viewer shows as background).
 // A proxy's vertices are always vertices of its input (meshoptimizer only removes vertices), so
 // they stay on the global lattice and encode with the store's cell codecs.
 //
@@ -58,7 +60,8 @@ struct ProxyOptions {
 // What simplify_proxy did, for the build's report.
 struct ProxySimplifyStats {
   bool simplified = false;   // the input had more triangles than the target
-  bool sloppy = false;       // meshopt_simplifySloppy replaced meshopt_simplify's result
+  bool unlocked = false;     // the locked border kept meshopt_simplify above twice the target: unlocked
+  bool sloppy = false;       // meshopt_simplifySloppy replaced meshopt_simplify's result (unlocked too far)
   double estimate = 0.0;     // meshoptimizer's absolute error (result_error x simplifyScale)
   double measured = 0.0;     // sampled two-sided distance between proxy and input
 };
@@ -76,7 +79,8 @@ ProxyMesh merge_proxies(const ProxyMesh& lower, const ProxyMesh& upper);
 
 // The proxy of `input`: a copy when it has at most options.target_triangles triangles (same
 // error), else simplified (at most twice the target unless even sloppy clustering cannot get
-// there) with the bound described above. Never empty for a non-empty input.
+// there; borders locked when that gets there, else unlocked, else sloppy clustering, which
+// opens holes) with the bound described above. Never empty for a non-empty input.
 ProxyMesh simplify_proxy(const ProxyMesh& input, const ProxyOptions& options, ProxySimplifyStats* stats = nullptr);
 
 // The sampled two-sided distance between two meshes (see above; `a` is the input, `b` the proxy).

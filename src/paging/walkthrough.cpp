@@ -19,6 +19,8 @@ constexpr int kPrefetchFrames = 4;
 // The share of the decoded cells' room a pass of a thrashing image aims to fill (the rest
 // absorbs the error of estimating a part's cells from the last part's).
 constexpr double kPassFill = 0.75;
+// Share of a pegged frame time that paging in (on the frame's thread) may take at a time.
+constexpr double kPageInShare = 0.25;
 
 bool same_camera(const Camera& a, const Camera& b) {
   return a.eye == b.eye && a.look_at == b.look_at && a.up == b.up && a.vfov_deg == b.vfov_deg;
@@ -66,9 +68,16 @@ nlohmann::json FrameReport::to_json() const {
                       {"collision_loads", collision_loads},
                       {"collision_errors", collision_errors},
                       {"decode_ms", decode_ms},
+                      {"decode_ahead_ms", decode_ahead_ms},
                       {"reconstruct_ms", reconstruct_ms},
                       {"shading_ops", shading_ops},
-                      {"shadow_rays", shadow_rays}};
+                      {"shadow_rays", shadow_rays},
+                      {"pixel_error", pixel_error},
+                      {"proxy_nodes", proxy_nodes},
+                      {"missing_nodes", missing_nodes},
+                      {"proxy_pixels", proxy_pixels},
+                      {"stand_ins", stand_ins},
+                      {"proxies_loaded", proxies_loaded}};
   j["visibility"] = visibility_name(visibility);
   j["nodes_touched"] = nodes_touched;
   j["primitives_touched"] = primitives_touched;
@@ -130,9 +139,16 @@ Result<std::unique_ptr<Walkthrough>> Walkthrough::open(const std::string& store_
 
 Walkthrough::~Walkthrough() = default;
 
-void Walkthrough::start_image(bool shadows) {
+void Walkthrough::start_image(bool shadows, double pixel_error) {
+  // Missing cells are drawn by proxies only in frames that may end before every page is in.
+  const FrameBudget& budget = options_.budget;
+  const bool stand_in_missing = !options_.sync_paging && (budget.ms > 0.0 || budget.samples > 0);
+  world_->set_detail(view_, pixel_error, stand_in_missing);
   world_->begin_frame(marks_);
   image_shadows_ = shadows;
+  image_pixel_error_ = pixel_error;
+  image_replaced_at_ = world_->stand_ins_replaced();
+  image_proxy_pixels_ = 0;
   caster_->begin(view_, buffer_, marks_, true, shadows);
   image_samples_ = 0;
   passes_ = Passes();
@@ -208,7 +224,10 @@ void Walkthrough::report_paging(FrameReport& r) {
   r.cells_evicted = paging.cells_evicted;
   r.cells_dropped = paging.cells_dropped;
   r.cells_reread = paging.cells_reread;
+  r.stand_ins = paging.stand_ins;
+  r.proxies_loaded = paging.proxies_loaded;
   r.decode_ms = paging.decode_ms;
+  r.decode_ahead_ms = paging.decode_ahead_ms;
   r.bytes_read = cache.bytes_read - last_bytes_read_;
   last_bytes_read_ = cache.bytes_read;
   r.page_errors = cache.errors;
@@ -269,6 +288,7 @@ FrameReport Walkthrough::render_frame(const Camera& camera, bool deferred_now) {
   reconstruct_for_display(r);
   r.cells_touched = world_->end_frame(marks_);
   report_image(r, counters);
+  image_proxy_pixels_ = r.proxy_pixels;
   report_paging(r);
   r.frame_ms = ms_since(start);
   if (plan.overtime) r.floor_ms = std::max(0.0, r.frame_ms - options_.budget.ms);
@@ -284,9 +304,16 @@ bool Walkthrough::choose_image(const Camera& camera, bool still, bool deferred_n
   const bool lights = shader_->effects().shadows && options_.shadows;
   if (!still) {
     view_ = View(camera, options_.width, options_.height);
-    start_image(deferred_now && lights);
+    // A still frame is the exact image at once; a moving camera's frames use the pixel error.
+    start_image(deferred_now && lights, deferred_now ? 0.0 : options_.pixel_error);
+  } else if (caster_->complete() && image_proxy_pixels_ > 0 &&
+             (image_pixel_error_ > 0.0 || world_->stand_ins_replaced() != image_replaced_at_)) {
+    // The camera stopped and its image is complete but shows proxies: refine towards the exact
+    // image (pixel error 0, and the pages that replaced stand-ins since).
+    start_image(image_shadows_, 0.0);
   } else if (caster_->complete() && lights && !image_shadows_) {
-    start_image(true);  // the camera stopped and the image is complete: now the deferred effects
+    // The camera stopped and the image is complete: now the deferred effects.
+    start_image(true, image_pixel_error_);
   } else {
     return false;
   }
@@ -308,7 +335,7 @@ Walkthrough::FramePlan Walkthrough::plan_frame(Clock::time_point start, bool sti
     // Paging in (decode + subtree build) is frame time too: it gets at most a quarter of the
     // frame while other work is queued; the rest waits for the next frame (its work stays
     // parked), so a burst of new cells costs samples over a few frames instead of most of one.
-    plan.page_in_deadline = std::min(plan.deadline, after(0.25 * budget.ms));
+    plan.page_in_deadline = std::min(plan.deadline, after(kPageInShare * budget.ms));
     // The quality floor (WalkOptions::min_sampled) holds for moving frames under a time peg.
     if (!still) plan.floor_samples = static_cast<uint64_t>(options_.min_sampled * double(view_.pixels()));
   }
@@ -319,8 +346,10 @@ double Walkthrough::render_image(FramePlan& plan, Counters& counters) {
   const FrameBudget& budget = options_.budget;
   double stall_ms = 0.0;
   while (true) {
-    // With nothing else to do, paging in may use the rest of the frame.
-    if (world_->sync(caster_->runnable() ? plan.page_in_deadline : plan.deadline)) {
+    // With nothing else to do, paging in may go on, a paging share at a time in a frame that
+    // may end early (what it grafts is drawn before the frame ends), to the end of a frame
+    // that waits for every page.
+    if (world_->sync(caster_->runnable() ? plan.page_in_deadline : page_in_slice(plan))) {
       caster_->tree_changed();
       caster_->resume_parked();
     }
@@ -339,6 +368,13 @@ double Walkthrough::render_image(FramePlan& plan, Counters& counters) {
     stall_ms += world_->wait_for_pages(plan.wait_for_all ? Clock::time_point::max() : plan.deadline);
   }
   return stall_ms;
+}
+
+Clock::time_point Walkthrough::page_in_slice(const FramePlan& plan) const {
+  if (plan.wait_for_all || options_.budget.ms <= 0.0) return plan.deadline;
+  const auto share = std::chrono::duration_cast<Clock::duration>(
+      std::chrono::duration<double, std::milli>(kPageInShare * options_.budget.ms));
+  return std::min(plan.deadline, Clock::now() + share);
 }
 
 bool Walkthrough::next_pass(bool finish) {
@@ -435,6 +471,15 @@ void Walkthrough::report_image(FrameReport& r, const Counters& counters) const {
   r.complete = caster_->complete();
   r.shadows = image_shadows_;
   r.parked = caster_->parked() + caster_->held();
+  r.pixel_error = image_pixel_error_;
+  if (world_->has_proxies()) {
+    const StandInReport s = world_->stand_in_report(marks_);
+    r.proxy_nodes = s.proxy_nodes;
+    r.missing_nodes = s.missing_cells;
+    for (size_t i = 0; i < buffer_.size(); ++i) {
+      if (buffer_.confirmed(i) && world_->stand_in_prim(buffer_.prim(i))) ++r.proxy_pixels;
+    }
+  }
 }
 
 const std::vector<Rgb>& Walkthrough::image() {

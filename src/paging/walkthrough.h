@@ -45,6 +45,7 @@
 
 #include <nlohmann/json_fwd.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdint>
 #include <memory>
@@ -84,6 +85,11 @@ struct WalkOptions {
   // render every frame complete (paging synchronously) and ignore the budget.
   Visibility visibility = Visibility::kFrustumAdvance;
   bool cull_back_faces = false;  // rasterizing classes: drop back faces (closed solids only)
+  // Stores with proxies (PagedWorld "Stand-ins"): a cell is drawn by an ancestor's proxy when
+  // that proxy's error bound projects below this many pixels (0: never; the exact renderer).
+  // Budgeted frames (no sync paging) also draw missing cells by proxies until their pages
+  // arrive. A still camera refines: once its image is complete, the next is rendered with 0.
+  double pixel_error = 0.0;
 };
 
 // How a paged-in store cell is refined into its own subtree under `options` (PagedWorld's
@@ -140,10 +146,21 @@ struct FrameReport {
   uint64_t collision_errors = 0;
   // Fills the collision fields from a walker (queries) and its grid (brick cache).
   void add_walk_counters(const Walker& walker);
-  double decode_ms = 0.0;
+  double decode_ms = 0.0;        // paging in on the frame's thread (sync)
+  double decode_ahead_ms = 0.0;  // decoding on the decoder thread, of the cells grafted in this frame
   double reconstruct_ms = 0.0;      // 0 when the frame did not reconstruct its image
   uint64_t shading_ops = 0;
   uint64_t shadow_rays = 0;
+  // Stand-ins (stores with proxies): the pixel error this image was rendered with; distinct top
+  // nodes whose proxies the image's rays entered; the store cells those rays reached that were
+  // drawn by an ancestor's proxy because their pages were missing; pixels confirmed on a proxy;
+  // stand-ins grafted and proxies decoded in this frame.
+  double pixel_error = 0.0;
+  uint64_t proxy_nodes = 0;
+  uint64_t missing_nodes = 0;
+  uint64_t proxy_pixels = 0;
+  uint64_t stand_ins = 0;
+  uint64_t proxies_loaded = 0;
   // Issue 7's comparison of visibility classes. Frustum advance: nodes_touched counts cell
   // entries (with repetition: its navigation goes through ropes, not down from the root),
   // primitives_touched its primitive incidences, nothing is rasterized.
@@ -170,6 +187,9 @@ class Walkthrough {
   // Changes the per-frame budget (pegging time or samples, paper §5.5) for the next frames.
   void set_budget(const FrameBudget& budget) { options_.budget = budget; }
   const FrameBudget& budget() const { return options_.budget; }
+  // Changes the pixel error (WalkOptions::pixel_error) from the next moving frame on.
+  void set_pixel_error(double pixel_error) { options_.pixel_error = std::max(0.0, pixel_error); }
+  double pixel_error() const { return options_.pixel_error; }
 
   const StoreModel& model() const { return *model_; }
   const PagedWorld& world() const { return *world_; }
@@ -200,7 +220,7 @@ class Walkthrough {
     bool unfit = false;
   };
   Walkthrough() = default;
-  void start_image(bool shadows);
+  void start_image(bool shadows, double pixel_error);
   FrameReport culling_frame(const Camera& camera);
   FrameReport render_frame(const Camera& camera, bool deferred_now);
   // The steps of frame(), in order.
@@ -218,6 +238,8 @@ class Walkthrough {
   // When only parked work is left and no page is on its way: frees room and starts the next
   // pass (see the top of this file). False when the frame ends here.
   bool next_pass(bool finish);
+  // When a sync() with nothing to render meanwhile stops paging in.
+  std::chrono::steady_clock::time_point page_in_slice(const FramePlan& plan) const;
   // The caster goes on after the world's cells were renumbered.
   void resume_renumbered();
   void keep_ids();
@@ -244,6 +266,9 @@ class Walkthrough {
   View view_;
   std::optional<Camera> last_camera_;
   bool image_shadows_ = false;
+  double image_pixel_error_ = 0.0;   // the pixel error of the current image
+  uint64_t image_replaced_at_ = 0;   // world's stand_ins_replaced() when the image began
+  uint64_t image_proxy_pixels_ = 0;  // proxy pixels of the current image, as last reported
   uint64_t frames_ = 0;
   uint64_t last_bytes_read_ = 0;
   double finish_ms_ = 0.0;        // recent time from the end of the job queue to the end of a frame

@@ -1,11 +1,12 @@
 #!/usr/bin/env python3
 """Writes OUT/REPORT.md and its plots from the measurements tests/bench/report.sh left in OUT/raw.
 
-    python3 tests/bench/report.py OUT_DIR
+    python3 tests/bench/report.py OUT_DIR [--only pixel-error]
 
 Reads raw/machine.json, raw/commands.txt, raw/embree.jsonl, raw/build.md, raw/accuracy.jsonl,
 raw/stability.json, raw/walk_pegged.jsonl, raw/walk_sync.jsonl, raw/visibility.csv and
-raw/visibility.md; draws the plots with gnuplot.
+raw/visibility.md, raw/pixel_error.md (section 9, whole); draws the plots with gnuplot.
+--only pixel-error: the machine, section 9 and the commands (report.sh --only pixel-error).
 Every number in the report comes from those files.
 """
 import csv
@@ -15,7 +16,8 @@ import statistics
 import subprocess
 import sys
 
-OUT = os.path.abspath(sys.argv[1]) if len(sys.argv) > 1 else sys.exit("usage: report.py OUT_DIR")
+OUT = os.path.abspath(sys.argv[1]) if len(sys.argv) > 1 else sys.exit("usage: report.py OUT_DIR [--only pixel-error]")
+ONLY = sys.argv[3] if len(sys.argv) > 3 and sys.argv[2] == "--only" else ""
 RAW = os.path.join(OUT, "raw")
 
 # Published anchor (issue 6): OpenRT's Boeing 777 store, bytes per triangle including its
@@ -609,6 +611,20 @@ def section_bsp():
     out.append(read_text("bsp.md").strip() + "\n")
 
 
+def section_pixel_error():
+    out.append("## 9. What accuracy costs in time: pixel error\n")
+    if not os.path.exists(raw_path("pixel_error.md")):
+        out.append("No measurements (raw/pixel_error.md missing).\n")
+        return
+    out.append(read_text("pixel_error.md").strip() + "\n")
+    # Headline: T = 1 (the default) per walk, the first run of each (report.sh --repeats names them "1 #1").
+    for r in read_jsonl("pixel_error.jsonl"):
+        if r["pixel_error"] in ("1", "1 #1"):
+            headline.append((f"pixel error T = 1, {r['walk'].replace('_', ' ')}: p95 ms, mean / min coverage, PSNR",
+                             f"{r['p95_frame_ms']:.1f}; {r['mean_coverage']:.3f} / {r['min_coverage']:.3f}; "
+                             f"{r['mean_psnr_db']:.1f} dB"))
+
+
 def section_commands():
     out.append("## Commands\n")
     out.append("The whole report: `tests/bench/report.sh OUT_DIR` (add `--quick` for small models). It ran:\n")
@@ -616,14 +632,16 @@ def section_commands():
 
 
 section_machine()
-section_embree()
-section_build()
-section_accuracy()
-section_stability()
-section_walk()
-section_visibility()
-section_imr()
-section_bsp()
+if ONLY != "pixel-error":
+    section_embree()
+    section_build()
+    section_accuracy()
+    section_stability()
+    section_walk()
+    section_visibility()
+    section_imr()
+    section_bsp()
+section_pixel_error()
 section_commands()
 text = "\n".join(out)
 head = "| headline | measured |\n|---|---|\n" + "\n".join(f"| {k} | {v} |" for k, v in headline)

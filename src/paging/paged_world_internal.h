@@ -1,0 +1,77 @@
+// PagedWorld's private records, shared by paged_world.cpp and paged_world_stand_in.cpp.
+#pragma once
+
+#include "src/paging/paged_world.h"
+
+#include <tbb/task_arena.h>
+
+#include <condition_variable>
+#include <thread>
+
+namespace frontier {
+
+// Where a grafted cell's pieces live in the world's arrays (each a contiguous range: a graft
+// appends to every array at once, so ranges of later grafts lie after earlier ones).
+struct PagedWorld::Graft {
+  uint32_t cell = 0;                     // store cell
+  uint32_t node0 = 0, nodes = 0;         // tree nodes
+  uint32_t cell0 = 0, cells = 0;         // world cells
+  uint32_t ref0 = 0, refs = 0;           // references (and their bounds)
+  uint32_t prim0 = 0, prims = 0;         // scene.prims
+  std::array<uint32_t, 5> kind0{}, kinds{};  // per PrimKind array ranges
+  uint64_t bytes = 0;
+  bool stand_in = false;                 // a proxy's subtree: `cell` is then the top node
+};
+
+struct PagedWorld::Decoded {
+  uint32_t cell = 0;
+  // Not decoded: the page left the cache between ready() and try_pin(), or the deadline came
+  // before its turn. Wanted again.
+  bool retry = false;
+  bool skipped = false;  // not decoded: it would not fit (hopeless())
+  Status status;
+  Scene scene;
+  KdTree tree;
+  uint64_t bytes = 0;
+  int32_t stand_in = -1;  // a proxy subtree: the node whose proxy it is
+};
+
+// A top node's proxy as the world holds it: its triangles (source and material kept) and their
+// bounds, so a cell's stand-in takes the ones overlapping its region without testing the rest
+// twice.
+struct PagedWorld::ProxySlot {
+  bool requested = false;
+  bool resident = false;
+  bool failed = false;
+  Scene scene;
+  std::vector<Aabb> bounds;  // per triangle
+  uint64_t bytes = 0;
+  uint64_t used = 0;         // proxy_use_ stamp of the last stand-in made from it
+  int32_t graft = -1;        // its subtree's index in live_ once grafted (-1: none)
+  uint8_t link = 0;          // kLinkNone, or why the top node is a link to that subtree now
+  uint8_t last_link = 0;     // why it was linked last (the report, after it gave way)
+  bool drawn = false;        // linked, and its subtree was reached by the last image's rays
+  KdTree::Node saved;        // the top node as the store has it, while linked
+};
+
+// The decoder thread's shared state (paged_world_decoder.cpp). Lock order: wanted_mutex_, then
+// `mutex`.
+struct PagedWorld::DecoderState {
+  std::thread thread;
+  tbb::task_arena arena{1, 1};
+  std::mutex mutex;
+  std::condition_variable cv;
+  bool stop = false;
+  std::vector<Decoded> done;      // decoded, not placed yet
+  uint64_t done_bytes = 0;
+  size_t in_flight = 0;           // taken off wanted_, being decoded
+  uint64_t cap = 0;               // done_bytes stay below this
+  uint64_t room = 0;              // the decoded share's free bytes at the last publish_room()
+  uint64_t room_generation = 0;
+  bool blocked = false;           // a decoded cell did not fit the room of this generation
+  Vec3 eye{0.0};                  // the current view's eye (priority)
+  bool has_eye = false;
+  double ms = 0.0;                // decoding time since the last take_decoded()
+};
+
+}  // namespace frontier

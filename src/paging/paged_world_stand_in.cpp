@@ -1,0 +1,538 @@
+// PagedWorld's stand-ins: proxies of top-tree nodes drawing cells whose pages are missing or
+// not worth their detail (see "Stand-ins" in paged_world.h).
+#include "src/paging/paged_world.h"
+#include "src/paging/paged_world_internal.h"
+#include "src/core/geometry.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace frontier {
+
+
+namespace {
+
+// The decoded share a world's proxies may take at most (least recently used beyond it go first;
+// the root's stays).
+constexpr uint64_t kProxyShareDivisor = 16;
+// Proxies decoded per sync() even past its deadline (progress).
+constexpr size_t kMinStandInWork = 8;
+
+
+}  // namespace
+
+void PagedWorld::open_proxies() {
+  const auto& proxies = model_.proxies();
+  if (proxies.empty()) return;
+  const auto& nodes = model_.nodes();
+  proxy_.resize(nodes.size());
+  node_pixels_.assign(nodes.size(), kInfinity);
+  parent_.assign(nodes.size(), -1);
+  for (size_t n = 0; n < nodes.size(); ++n) {
+    if (nodes[n].is_leaf()) continue;
+    parent_[n + 1] = static_cast<int32_t>(n);                    // lower child follows its parent
+    parent_[nodes[n].child] = static_cast<int32_t>(n);           // upper child
+  }
+  // Preorder: a node's subtree is the nodes from it to subtree_end_ (exclusive).
+  subtree_end_.assign(nodes.size(), 0);
+  leaves_under_.assign(nodes.size(), 0);
+  for (size_t n = nodes.size(); n-- > 0;) {
+    if (nodes[n].is_leaf()) {
+      subtree_end_[n] = uint32_t(n + 1);
+      leaves_under_[n] = 1;
+    } else {
+      subtree_end_[n] = subtree_end_[nodes[n].child];
+      leaves_under_[n] = leaves_under_[n + 1] + leaves_under_[nodes[n].child];
+    }
+  }
+  tree_.cover_.assign(nodes.size(), KdTree::kNone);
+  stand_in_prim_.reserve(scene_.prims.capacity());
+  // The root's proxy is there from the first frame: read now, through the cache.
+  if (model_.proxy(0) != nullptr) {
+    proxy_[0].requested = true;
+    proxy_wanted_.push_back(0);
+    cache_->request(model_.proxy(0)->page);
+    const auto pin = cache_->pin(model_.proxy(0)->page);
+    (void)pin;  // load_proxies() decodes it (it stays in the cache until then)
+    load_proxies(std::chrono::steady_clock::time_point::max());
+  }
+}
+
+double PagedWorld::pixels_of(uint32_t node) const {
+  const StoreProxy* p = model_.proxy(node);
+  if (p == nullptr) return kInfinity;
+  // The point of the node's region nearest the eye; its distance stands for the depth (it is
+  // at least the depth, so this overestimates the pixels: conservative).
+  const double d = distance_to_box(detail_view_.eye, model_.node_region(node));
+  if (d <= 0.0) return kInfinity;
+  // A length e at distance d spans e * height / (2 d tan(vfov / 2)) pixels.
+  return p->error * double(detail_view_.height) / (2.0 * detail_view_.half_h * d);
+}
+
+bool PagedWorld::detail_ok(int32_t node) const {
+  return node >= 0 && proxy_[size_t(node)].resident && node_pixels_[size_t(node)] < pixel_error_;
+}
+
+int32_t PagedWorld::detail_node(uint32_t cell) const {
+  if (pixel_error_ <= 0.0) return -1;
+  int32_t best = -1;
+  for (int32_t n = parent_[leaf_node_[cell]]; n >= 0; n = parent_[size_t(n)]) {
+    if (detail_ok(n)) best = n;
+  }
+  return best;
+}
+
+int32_t PagedWorld::nearest_proxy(uint32_t cell) const {
+  for (int32_t n = parent_[leaf_node_[cell]]; n >= 0; n = parent_[size_t(n)]) {
+    if (proxy_[size_t(n)].resident) return n;
+  }
+  return -1;
+}
+
+void PagedWorld::request_proxies(uint32_t cell) {
+  // Coarse to fine, one level at a time: the ancestor just below the deepest resident one, unless
+  // a resident ancestor is already fine enough for the pixel error (then nothing finer is read).
+  int32_t below = -1;
+  for (int32_t n = parent_[leaf_node_[cell]]; n >= 0; n = parent_[size_t(n)]) {
+    const ProxySlot& slot = proxy_[size_t(n)];
+    if (slot.resident) {
+      if (pixel_error_ > 0.0 && node_pixels_[size_t(n)] < pixel_error_) return;
+      break;
+    }
+    if (!slot.failed && model_.proxy(uint32_t(n)) != nullptr) below = n;
+  }
+  if (below < 0 || proxy_[size_t(below)].requested) return;
+  proxy_[size_t(below)].requested = true;
+  proxy_wanted_.push_back(uint32_t(below));
+  cache_->request(model_.proxy(uint32_t(below))->page);
+}
+
+bool PagedWorld::load_proxies(std::chrono::steady_clock::time_point deadline) {
+  std::vector<uint32_t> arrived;
+  {
+    std::lock_guard<std::mutex> lock(wanted_mutex_);
+    std::vector<uint32_t> waiting;
+    for (const uint32_t n : proxy_wanted_) {
+      const uint64_t page = model_.proxy(n)->page;
+      (cache_->ready(page) || cache_->failed(page) ? arrived : waiting).push_back(n);
+    }
+    proxy_wanted_.swap(waiting);
+  }
+  bool any = false;
+  for (size_t k = 0; k < arrived.size(); ++k) {
+    const uint32_t n = arrived[k];
+    ProxySlot& slot = proxy_[n];
+    if (k >= kMinStandInWork && std::chrono::steady_clock::now() >= deadline) {
+      std::lock_guard<std::mutex> lock(wanted_mutex_);  // the rest in a later sync()
+      proxy_wanted_.insert(proxy_wanted_.end(), arrived.begin() + std::ptrdiff_t(k), arrived.end());
+      break;
+    }
+    slot.requested = false;
+    const uint64_t page = model_.proxy(n)->page;
+    std::optional<store::Pin> pin = cache_->try_pin(page);
+    if (!pin) {
+      if (cache_->failed(page)) {
+        slot.failed = true;  // drawn by a coarser proxy (or the page) from now on
+      } else {
+        std::lock_guard<std::mutex> lock(wanted_mutex_);
+        slot.requested = true;
+        proxy_wanted_.push_back(n);
+        cache_->request(page);
+      }
+      continue;
+    }
+    Scene scene;
+    const Status s = model_.decode_proxy_page(n, pin->codec(), pin->bytes(), scene);
+    pin->reset();
+    if (!s) {
+      slot.failed = true;
+      ++counters_.page_errors;
+      continue;
+    }
+    slot.scene = std::move(scene);
+    slot.bounds.resize(slot.scene.size());
+    for (uint32_t i = 0; i < slot.scene.size(); ++i) slot.bounds[i] = slot.scene.prim_bounds(i);
+    slot.bytes = slot.scene.triangles.size() * (sizeof(Triangle) + sizeof(PrimRef) + sizeof(Aabb)) +
+                 slot.scene.triangle_normals.size() * sizeof(std::array<Vec3, 3>);
+    slot.resident = true;
+    slot.used = ++proxy_use_;
+    proxy_bytes_ += slot.bytes;
+    ++counters_.proxies_loaded;
+    any = true;
+  }
+  if (any) drop_proxies_over_budget();
+  return any;
+}
+
+void PagedWorld::drop_proxies_over_budget() {
+  const uint64_t cap = std::max<uint64_t>(lru_.budget() / kProxyShareDivisor, 1);
+  while (proxy_bytes_ > cap) {
+    int32_t victim = -1;
+    for (size_t n = 1; n < proxy_.size(); ++n) {
+      if (proxy_[n].resident && (victim < 0 || proxy_[n].used < proxy_[size_t(victim)].used)) victim = int32_t(n);
+    }
+    if (victim < 0) return;
+    drop_proxy(uint32_t(victim));  // its cells are missing again
+  }
+}
+
+std::array<int32_t, 6> PagedWorld::node_ropes(uint32_t node) const {
+  // As the top tree's builder assigns them (kdtree.cpp assign_ropes), from the root down: a
+  // child's face on its parent's split plane leads to its sibling, the others to the parent's.
+  std::vector<uint32_t> path;
+  for (int32_t n = int32_t(node); n >= 0; n = parent_[size_t(n)]) path.push_back(uint32_t(n));
+  std::array<int32_t, 6> ropes;
+  ropes.fill(KdTree::kNone);
+  const auto& nodes = model_.nodes();
+  for (size_t k = path.size() - 1; k > 0; --k) {
+    const uint32_t n = path[k], child = path[k - 1];
+    const int a = static_cast<int>(nodes[n].axis_or_leaf);
+    if (child == n + 1) {
+      ropes[size_t(2 * a + 1)] = static_cast<int32_t>(nodes[n].child);  // lower child: upper face
+    } else {
+      ropes[size_t(2 * a)] = static_cast<int32_t>(n + 1);               // upper child: lower face
+    }
+  }
+  return ropes;
+}
+
+bool PagedWorld::graft_proxy(uint32_t node) {
+  ProxySlot& slot = proxy_[node];
+  if (slot.graft >= 0) return true;
+  Decoded d;
+  d.cell = node;
+  d.stand_in = int32_t(node);
+  d.scene = slot.scene;
+  KdBuildOptions options = cell_build_;
+  options.root = model_.node_region(node);
+  d.tree = KdTree::build(d.scene, options);
+  d.bytes = d.scene.prims.size() * (sizeof(PrimRef) + sizeof(Triangle)) +
+            d.tree.nodes().size() * sizeof(KdTree::Node) + d.tree.cells().size() * (sizeof(KdTree::Cell) + 56) +
+            d.tree.reference_count() * (sizeof(uint32_t) + sizeof(Aabb));
+  if (lru_.bytes() + held_besides_cells() + d.bytes > lru_.budget()) return false;
+  const Graft g = append(d, node_ropes(node), kNoOwner);
+  slot.graft = static_cast<int32_t>(live_.size());
+  live_.push_back(g);
+  slot.bytes += g.bytes;
+  proxy_bytes_ += g.bytes;
+  return true;
+}
+
+int32_t PagedWorld::link_above(uint32_t node) const {
+  for (int32_t n = int32_t(node); n >= 0; n = parent_[size_t(n)]) {
+    if (proxy_[size_t(n)].link != kLinkNone) return n;
+  }
+  return -1;
+}
+
+bool PagedWorld::link_node(uint32_t node, uint8_t why) {
+  ProxySlot& slot = proxy_[node];
+  if (slot.link != kLinkNone) {
+    slot.link = slot.last_link = why;
+    return false;
+  }
+  if (!graft_proxy(node)) return false;
+  // What was linked below is inside the node's region: the node's proxy draws it now.
+  for (size_t k = 0; k < linked_nodes_.size();) {
+    const uint32_t n = linked_nodes_[k];
+    if (n > node && n < subtree_end_[node]) {
+      unlink_node(n);
+    } else {
+      ++k;
+    }
+  }
+  // The node becomes a link to its proxy's subtree, which covers the node's region: a ray that
+  // reaches any part of it goes through the proxy until it leaves the node, and the proxy's
+  // locked borders meet the neighbours' surfaces (no crack between a proxy and a page).
+  KdTree::Node& n = tree_.nodes_[node];
+  slot.saved = n;
+  n.axis_or_leaf = 4;
+  n.child = live_[size_t(slot.graft)].node0;
+  slot.link = why;
+  slot.last_link = why;
+  slot.used = ++proxy_use_;
+  linked_nodes_.push_back(node);
+  cover_subtree(node);
+  ++counters_.stand_ins;
+  return true;
+}
+
+void PagedWorld::cover_subtree(uint32_t node) {
+  // Preorder: a node's parent comes before it, so its cover is known when the node's is set.
+  std::vector<int32_t>& cover = tree_.cover_;
+  for (uint32_t n = node + 1; n < subtree_end_[node]; ++n) {
+    const int32_t p = parent_[n];
+    cover[n] = cover[size_t(p)] != KdTree::kNone ? cover[size_t(p)]
+               : proxy_[size_t(p)].link != kLinkNone ? p
+                                                     : KdTree::kNone;
+  }
+}
+
+void PagedWorld::unlink_node(uint32_t node) {
+  ProxySlot& slot = proxy_[node];
+  if (slot.link == kLinkNone) return;
+  tree_.nodes_[node] = slot.saved;
+  slot.link = kLinkNone;
+  std::erase(linked_nodes_, node);
+  cover_subtree(node);
+  ++stand_ins_replaced_;
+}
+
+bool PagedWorld::complete_below(uint32_t node) const {
+  const auto& nodes = model_.nodes();
+  for (uint32_t n = node; n < subtree_end_[node]; ++n) {
+    if (!nodes[n].is_leaf()) continue;
+    const uint32_t c = nodes[n].child;
+    if (model_.cells()[c].page != StoreCell::kNoPage && slot_[c] < 0 && failed_[c] == 0) return false;
+  }
+  return true;
+}
+
+bool PagedWorld::drawable(uint32_t node) const {
+  const auto& nodes = model_.nodes();
+  if (nodes[node].is_leaf()) {
+    const uint32_t c = nodes[node].child;
+    return model_.cells()[c].page == StoreCell::kNoPage || slot_[c] >= 0 || failed_[c] != 0;
+  }
+  return proxy_[node].resident || (drawable(node + 1) && drawable(nodes[node].child));
+}
+
+void PagedWorld::link_children(uint32_t node) {
+  const auto& nodes = model_.nodes();
+  for (const uint32_t x : {node + 1, nodes[node].child}) {
+    if (nodes[x].is_leaf() || complete_below(x)) continue;
+    if (proxy_[x].resident && link_node(x, kLinkMissing)) continue;
+    link_children(x);
+  }
+}
+
+void PagedWorld::refine(uint32_t node) {
+  const auto& nodes = model_.nodes();
+  // Coarse to fine: the proxies of its children and grandchildren (two levels a round trip),
+  // and the pages of a subtree of a few cells.
+  const auto request = [&](uint32_t x) {
+    ProxySlot& slot = proxy_[x];
+    if (nodes[x].is_leaf() || slot.resident || slot.requested || slot.failed || model_.proxy(x) == nullptr) return;
+    std::lock_guard<std::mutex> lock(wanted_mutex_);
+    slot.requested = true;
+    proxy_wanted_.push_back(x);
+    cache_->request(model_.proxy(x)->page);
+  };
+  for (const uint32_t x : {node + 1, nodes[node].child}) {
+    request(x);
+    if (!nodes[x].is_leaf()) {
+      request(x + 1);
+      request(nodes[x].child);
+    }
+  }
+  if (leaves_under_[node] <= kRefineCells) {
+    for (uint32_t n = node; n < subtree_end_[node]; ++n) {
+      if (!nodes[n].is_leaf()) continue;
+      const uint32_t c = nodes[n].child;
+      if (model_.cells()[c].page == StoreCell::kNoPage || slot_[c] >= 0 || failed_[c] != 0) continue;
+      if (wanted_flag_[c].exchange(1, std::memory_order_acq_rel) != 0) continue;
+      std::lock_guard<std::mutex> lock(wanted_mutex_);
+      wanted_.push_back(c);
+      cache_->request(model_.cells()[c].page);
+    }
+  }
+  if (drawable(node + 1) && drawable(nodes[node].child)) {
+    unlink_node(node);
+    link_children(node);
+  }
+}
+
+void PagedWorld::release_proxy_graft(uint32_t node) {
+  ProxySlot& slot = proxy_[node];
+  unlink_node(node);
+  if (slot.graft < 0) return;
+  const uint64_t bytes = live_[size_t(slot.graft)].bytes;
+  remove_graft(slot.graft);
+  slot.graft = -1;
+  slot.bytes -= bytes;
+  proxy_bytes_ -= bytes;
+}
+
+void PagedWorld::release_proxy_grafts() {
+  for (size_t n = 0; n < proxy_.size(); ++n) {
+    if (proxy_[n].graft >= 0 || proxy_[n].link != kLinkNone) release_proxy_graft(uint32_t(n));
+  }
+}
+
+void PagedWorld::drop_proxy(uint32_t node) {
+  release_proxy_graft(node);
+  proxy_bytes_ -= proxy_[node].bytes;
+  proxy_[node] = ProxySlot();
+}
+
+bool PagedWorld::stand_in_wanted(std::chrono::steady_clock::time_point deadline) {
+  (void)deadline;
+  std::vector<uint32_t> wanted;
+  {
+    std::lock_guard<std::mutex> lock(wanted_mutex_);
+    wanted = wanted_;
+  }
+  bool changed = false;
+  std::vector<uint32_t> detail_done;
+  for (const uint32_t c : wanted) {
+    if (slot_[c] >= 0) continue;  // its page is grafted
+    const int32_t above = link_above(leaf_node_[c]);
+    if (above >= 0) {
+      // Drawn by a linked node's proxy already (linked after the cell was wanted): for detail,
+      // the page is not wanted; while pages are missing, it still is. Work parked on the cell
+      // resumes through the link (the caster must be told: nothing else may have changed, and
+      // a frame with nothing pending would end with that work parked).
+      if (proxy_[size_t(above)].link == kLinkDetail) detail_done.push_back(c);
+      changed = true;
+      continue;
+    }
+    const int32_t detail = detail_node(c);
+    if (detail >= 0) {
+      link_node(uint32_t(detail), kLinkDetail);
+      if (link_above(leaf_node_[c]) >= 0) {
+        detail_done.push_back(c);
+        changed = true;
+      }
+      continue;
+    }
+    // A missing cell is drawn by the finest proxy there is until its page arrives.
+    if (!stand_in_missing_) continue;
+    const int32_t nearest = nearest_proxy(c);
+    if (nearest >= 0) changed |= link_node(uint32_t(nearest), kLinkMissing);
+  }
+  if (!detail_done.empty()) {
+    // Drawn for detail: not wanted any more; wanted again when the link goes and a ray reaches it.
+    std::sort(detail_done.begin(), detail_done.end());
+    std::lock_guard<std::mutex> lock(wanted_mutex_);
+    std::erase_if(wanted_, [&](uint32_t c) { return std::binary_search(detail_done.begin(), detail_done.end(), c); });
+    for (const uint32_t c : detail_done) wanted_flag_[c].store(0, std::memory_order_release);
+  }
+  return changed;
+}
+
+void PagedWorld::set_detail(const View& view, double pixel_error, bool stand_in_missing) {
+  detail_view_ = view;
+  set_decode_eye(view.eye);
+  pixel_error_ = proxy_.empty() ? 0.0 : pixel_error;
+  stand_in_missing_ = !proxy_.empty() && stand_in_missing;
+  node_pixels_.assign(proxy_.size(), kInfinity);
+  if (pixel_error_ > 0.0) {
+    for (size_t n = 0; n < proxy_.size(); ++n) node_pixels_[n] = pixels_of(uint32_t(n));
+  }
+}
+
+bool PagedWorld::refine_arrived() {
+  // Linked nodes (for missing pages) whose children can now be drawn without them give way at
+  // once, within the frame: the rays still to come see the finer proxies.
+  bool changed = false;
+  const std::vector<uint32_t> linked = linked_nodes_;
+  for (const uint32_t n : linked) {
+    if (proxy_[n].link != kLinkMissing) continue;
+    const uint32_t upper = model_.nodes()[n].child;
+    if (drawable(n + 1) && drawable(upper)) {
+      unlink_node(n);
+      link_children(n);
+      changed = true;
+    }
+  }
+  return changed;
+}
+
+void PagedWorld::note_drawn(const CellMarks& marks) {
+  for (const uint32_t n : linked_nodes_) {
+    const ProxySlot& slot = proxy_[n];
+    const Graft& g = live_[size_t(slot.graft)];
+    bool drew = false;
+    for (uint32_t wc = g.cell0; wc < g.cell0 + g.cells && wc < marks.size() && !drew; ++wc) drew = marks.marked(int32_t(wc));
+    proxy_[n].drawn = drew;
+  }
+}
+
+void PagedWorld::review_stand_ins() {
+  if (stand_in_missing_ && linked_nodes_.empty() && resident_cells() == 0 && !proxy_.empty() && proxy_[0].resident) {
+    // A cold start (nothing of the model in memory yet, e.g. the first frame): the root's proxy
+    // draws the whole model at once instead of after a round trip of parked rays; it refines
+    // from the next frame on like any linked node.
+    if (link_node(0, kLinkMissing)) {
+      proxy_[0].drawn = true;
+      refine(0);  // asks for the next levels now
+    }
+    return;
+  }
+  const std::vector<uint32_t> linked = linked_nodes_;
+  for (const uint32_t n : linked) {
+    ProxySlot& slot = proxy_[n];
+    if (slot.link == kLinkNone) continue;  // unlinked by an ancestor's refinement meanwhile
+    if (!slot.drawn) {
+      // Out of view: a ray that reaches it later wants its cells again (and links it again).
+      unlink_node(n);
+      continue;
+    }
+    if (pixel_error_ > 0.0 && detail_ok(int32_t(n))) {
+      slot.link = slot.last_link = kLinkDetail;  // fine enough from here: stays, whatever is missing below
+      continue;
+    }
+    if (slot.link == kLinkDetail || !stand_in_missing_) {
+      unlink_node(n);
+      continue;
+    }
+    refine(n);
+  }
+}
+
+void PagedWorld::cells_under(uint32_t node, const Aabb& box, std::vector<uint32_t>& out) const {
+  // The store's top tree below `node`, descended to the leaves whose regions share volume with
+  // `box` (a face in common is not enough: a ray in `box` never entered such a leaf).
+  const auto& nodes = model_.nodes();
+  std::vector<uint32_t> stack{node};
+  while (!stack.empty()) {
+    const uint32_t n = stack.back();
+    stack.pop_back();
+    if (nodes[n].is_leaf()) {
+      out.push_back(nodes[n].child);
+      continue;
+    }
+    const int a = static_cast<int>(nodes[n].axis_or_leaf);
+    if (box.lo[a] < nodes[n].split) stack.push_back(n + 1);
+    if (box.hi[a] > nodes[n].split) stack.push_back(nodes[n].child);
+  }
+}
+
+StandInReport PagedWorld::stand_in_report(const CellMarks& marks) const {
+  // Rays that reach a linked node go on in its proxy's subtree, whose world cells have no store
+  // owner: what a proxy drew is read from its marked world cells, and the store cells it drew
+  // for are those under them.
+  StandInReport r;
+  std::vector<uint8_t> counted(top_cells_, 0);
+  std::vector<uint32_t> under;
+  for (uint32_t n = 0; n < proxy_.size(); ++n) {
+    // Every grafted proxy: one linked earlier in the frame may have given way to finer ones since.
+    const ProxySlot& slot = proxy_[n];
+    if (slot.graft < 0) continue;
+    const Graft& g = live_[size_t(slot.graft)];
+    bool drew = false;
+    for (uint32_t wc = g.cell0; wc < g.cell0 + g.cells && wc < marks.size(); ++wc) {
+      if (!marks.marked(int32_t(wc))) continue;
+      drew = true;
+      under.clear();
+      cells_under(n, tree_.cells()[wc].bounds, under);
+      for (const uint32_t c : under) {
+        if (counted[c] || model_.cells()[c].page == StoreCell::kNoPage) continue;
+        counted[c] = 1;
+        if (slot.last_link == kLinkDetail) {
+          ++r.detail_cells;
+        } else if (slot_[c] < 0) {
+          ++r.missing_cells;
+        }
+      }
+    }
+    if (!drew) continue;
+    ++r.proxy_nodes;
+    if (slot.last_link == kLinkMissing) ++r.missing_nodes;
+  }
+  return r;
+}
+
+}  // namespace frontier
