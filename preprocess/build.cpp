@@ -9,8 +9,10 @@
 #include "src/raster/portals.h"
 #include "src/core/progress.h"
 #include "src/io/scene_reader.h"
+#include "src/paging/cell_tree.h"
 #include "src/paging/proxy.h"
 #include "src/paging/store_model.h"
+#include "src/paging/walkthrough.h"
 #include "src/core/tessellate.h"
 #include "store/page_file.h"
 #include "store/store_file.h"
@@ -181,6 +183,26 @@ Result<EncodedCell> encode_page(const Scene& local, const CellCodecOptions& code
     e = encode_cell(local, raw);
   }
   return e;
+}
+
+// A cell page with its in-cell tree in front (cell_tree.h): the tree frontier-view builds with
+// `options` when it pages the cell in, built here on the cell as a reader decodes it. A tree that
+// does not assemble back bit for bit (never seen) leaves the page without one: the viewer
+// builds that cell's tree itself.
+struct TreePage {
+  std::vector<uint8_t> payload;
+  uint8_t codec = 0;
+  uint64_t tree_bytes = 0;  // 0: no tree
+};
+TreePage with_cell_tree(const EncodedCell& e, const Aabb& region, KdBuildOptions options) {
+  TreePage page{e.payload, static_cast<uint8_t>(e.codec), 0};
+  options.root = region;
+  auto tree = encode_cell_tree(e.decoded, KdTree::build(e.decoded, options), options);
+  if (!tree) return page;
+  page.payload = join_tree_page(*tree, e.payload);
+  page.codec |= kCellTreeFlag;
+  page.tree_bytes = tree->size();
+  return page;
 }
 
 // A proxy page made on a worker thread, written by the builder's thread afterwards.
@@ -773,10 +795,12 @@ class StoreBuilder {
     const CellCodecOptions codec = codec_options();
     std::vector<Result<EncodedCell>> encoded;
     std::vector<uint32_t> references;
+    std::vector<TreePage> tree_pages;
     for (size_t first = 0; first < cells.size(); first += kEncodeChunk) {
       const size_t last = std::min(cells.size(), first + kEncodeChunk);
       encoded.assign(last - first, Result<EncodedCell>(Status::ok()));
       references.assign(last - first, 0);
+      tree_pages.assign(options_.cell_trees ? last - first : 0, TreePage{});
       arena_->execute([&] {
         tbb::parallel_for(first, last, [&](size_t c) {
           const KdTree::Cell& cell = cells[c];
@@ -786,6 +810,10 @@ class StoreBuilder {
           Result<EncodedCell> e = encode_page(local, codec);
           if (e) {  // only the count of the decoded cell is needed: 256 of them would be megabytes
             references[c - first] = static_cast<uint32_t>(e->decoded.size());
+            if (options_.cell_trees && e->decoded.size() > 0) {
+              tree_pages[c - first] = with_cell_tree(*e, cell.bounds, cell_tree_options_);
+              e->payload.clear();
+            }
             e->decoded = Scene{};
           }
           encoded[c - first] = std::move(e);
@@ -798,11 +826,18 @@ class StoreBuilder {
         if (cells[c].count > 0) {
           Result<EncodedCell>& e = encoded[c - first];
           if (!e) return e.status();
-          auto page = writer_->add_page(static_cast<uint8_t>(e->codec), e->payload);
+          const TreePage* with_tree = options_.cell_trees && !tree_pages[c - first].payload.empty()
+                                          ? &tree_pages[c - first] : nullptr;
+          const std::vector<uint8_t>& payload = with_tree ? with_tree->payload : e->payload;
+          auto page = writer_->add_page(with_tree ? with_tree->codec : static_cast<uint8_t>(e->codec), payload);
           if (!page) return page.status();
           record.page = *page;
           record.references = references[c - first];
-          report_.page_bytes += e->payload.size();
+          report_.page_bytes += payload.size();
+          if (with_tree && with_tree->tree_bytes > 0) {
+            ++report_.cell_tree_pages;
+            report_.cell_tree_bytes += with_tree->tree_bytes;
+          }
           ++report_.pages;
           if (record.references == 0) record.page = StoreCell::kNoPage;  // everything dropped
         }
@@ -927,6 +962,11 @@ class StoreBuilder {
     info_.triangles = report_.triangles - snapped_away_;
     info_.degenerate_dropped = report_.degenerate_dropped;
     info_.cell_prims = options_.cell_prims;
+    if (report_.cell_tree_pages > 0) {
+      info_.cell_tree = cell_tree_options_;
+      info_.cell_tree_pages = report_.cell_tree_pages;
+      info_.cell_tree_bytes = report_.cell_tree_bytes;
+    }
     if (grid_) {
       // Every brick becomes a page as soon as it is assembled; the section is their table.
       auto bytes = grid_->finish([&](std::vector<uint8_t> brick) -> Result<uint64_t> {
@@ -973,6 +1013,8 @@ class StoreBuilder {
   Aabb bounds_;
   Aabb root_region_;  // bounds_ padded: the top tree's root
   Lattice lattice_;
+  // How frontier-view refines a paged-in cell by default: the in-cell trees stored in pages.
+  const KdBuildOptions cell_tree_options_ = page_refine_options(WalkOptions{});
   uint64_t root_count_ = 0;
   bool reparse_ = false;  // the root part is the inputs, parsed again (no ingest spill)
   std::vector<uint32_t> material_bases_;  // per input: its first material in info_.materials

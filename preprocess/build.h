@@ -92,6 +92,9 @@ struct BuildOptions {
   // Triangles a proxy page of an interior node aims at (src/paging/proxy.h; at most twice as many
   // where meshoptimizer's locked borders stop it, fewer for a subtree with fewer); 0: no proxies.
   uint32_t proxy_triangles = kDefaultProxyTriangles;
+  // Store each cell page's in-cell tree (src/paging/cell_tree.h): the tree frontier-view builds
+  // when it pages the cell in with its default options, so page-in does not run the SAH builder.
+  bool cell_trees = true;
 };
 
 struct BuildReport {
@@ -109,6 +112,8 @@ struct BuildReport {
   uint64_t spill_bytes = 0;             // written to temporary files
   uint64_t spill_peak_bytes = 0;        // the most of them on disk at once
   uint64_t page_bytes = 0;              // payloads of all pages
+  uint64_t cell_tree_pages = 0;         // cell pages carrying an in-cell tree
+  uint64_t cell_tree_bytes = 0;         // those trees' bytes (in page_bytes)
   uint64_t sdf_bytes = 0;               // the collision grid: its section and brick pages (--walkable)
   uint64_t sdf_bricks = 0;              // brick pages of the collision grid
   uint64_t sdf_memory = 0;              // most memory the grid held across partitions (index + a brick)

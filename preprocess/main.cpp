@@ -67,6 +67,10 @@ int main(int argc, char** argv) {
                "add a sparse OpenVDB distance grid for walk-mode collision, built out of core (spilled beside "
                "the output) and stored as 64^3-voxel brick pages (also when a MODEL.json sidecar says "
                "\"walkable\": true)");
+  bool no_cell_trees = false;
+  app.add_flag("--no-cell-trees", no_cell_trees,
+               "store cell pages without their in-cell k-d trees (smaller pages; frontier-view then builds each "
+               "cell's tree when it pages the cell in, as stores before in-cell trees)");
   bool no_walkable = false;
   auto* no_walk = app.add_flag("--no-walkable", no_walkable, "no collision grid, whatever a sidecar says");
   no_walk->excludes(app.get_option("--walkable"));
@@ -98,6 +102,7 @@ int main(int argc, char** argv) {
     for (const std::string& in : options.inputs) options.walkable = options.walkable || sidecar_says_walkable(in);
   }
   options.portals = !no_portals;
+  options.cell_trees = !no_cell_trees;
 
   auto report = frontier::build_store(options);
   if (!report) {
@@ -116,6 +121,11 @@ int main(int argc, char** argv) {
                              frontier::human_count(static_cast<double>(r.primitives) / std::max(r.seconds, 1e-9)),
                              r.ingest_seconds, r.spill_seconds, r.build_seconds, r.encode_seconds)
                      .c_str());
+    if (r.cell_tree_pages > 0) {
+      std::fprintf(stderr, "  in-cell trees: %llu pages, %.1f MB (%.2f bytes/triangle)\n",
+                   static_cast<unsigned long long>(r.cell_tree_pages), static_cast<double>(r.cell_tree_bytes) / 1e6,
+                   static_cast<double>(r.cell_tree_bytes) / static_cast<double>(std::max<uint64_t>(r.triangles, 1)));
+    }
     if (r.spill_bytes > 0) {
       std::fprintf(stderr, "  temporary spill: %.1f MB written, at most %.1f MB on disk at once (%.1f bytes/primitive)\n",
                    static_cast<double>(r.spill_bytes) / 1e6, static_cast<double>(r.spill_peak_bytes) / 1e6,

@@ -1,11 +1,12 @@
 // frontier-store: looks inside a store file.
 //   info FILE    what the store holds: primitives, cells, depth, bytes per triangle, codec,
-//                lattice, collision grid, cells and portals, proxies (pages, bytes apart from the
+//                in-cell trees (pages, bytes, the options they were built with), lattice, collision grid, cells and portals, proxies (pages, bytes apart from the
 //                cells', error bound at the root and per depth), sections, a histogram of cell sizes
 //   verify FILE  every checksum, every structural invariant (the portals section included),
-//                every cell page decoded and checked against its cell, every collision brick
-//                decoded, every proxy page decoded and checked against its record, every page
-//                owned by exactly one cell, brick or proxy; exit 1 naming the first bad part
+//                every cell page decoded and checked against its cell, every in-cell tree
+//                assembled over its cell, every collision brick decoded, every proxy page decoded
+//                and checked against its record, every page owned by exactly one cell, brick or
+//                proxy; exit 1 naming the first bad part
 #include "src/paging/collision_grid.h"
 #include "src/core/progress.h"
 #include "src/paging/store_model.h"
@@ -18,6 +19,7 @@
 #include <bit>
 #include <cstdio>
 #include <map>
+#include <optional>
 
 namespace {
 
@@ -89,6 +91,18 @@ int info(const std::string& path) {
   out += fmt::format("cells       {} ({} empty, {} pages), depth {}, --cell-prims {}, largest {}\n",
                      model.cells().size(), empty, model.cells().size() - empty, model.depth(), in.cell_prims, largest);
   out += fmt::format("codec       {}\n", frontier::cell_codec_name(in.codec));
+  if (in.cell_tree) {
+    const frontier::KdBuildOptions& o = *in.cell_tree;
+    out += fmt::format("cell trees  in {} of {} pages, {} bytes ({:.2f} bytes/triangle); built with max_cell_prims {}, "
+                       "min_cell_prims {}, split share {}, max_depth {}, traversal cost {}, intersection cost {}, "
+                       "empty bonus {}, bins {}\n",
+                       in.cell_tree_pages, model.cells().size() - empty, in.cell_tree_bytes,
+                       static_cast<double>(in.cell_tree_bytes) / tris, o.max_cell_prims, o.min_cell_prims,
+                       o.forced_split_max_share, o.max_depth, o.traversal_cost, o.intersection_cost, o.empty_bonus,
+                       o.bins);
+  } else {
+    out += "cell trees  none (frontier-view builds each cell's tree at page-in)\n";
+  }
   if (frontier::cell_codec_on_lattice(in.codec)) {
     out += fmt::format("lattice     {} bits, step {:.9g} (max error {:.3g} per axis), origin {}\n", in.lattice.bits,
                        in.lattice.step, in.lattice.max_error(), vec(in.lattice.origin));
@@ -142,7 +156,8 @@ int verify(const std::string& path, bool quiet) {
   if (!opened) return fail(opened.status());
   const StoreModel& model = **opened;
   frontier::Scene cell;
-  uint64_t references = 0, decoded_pages = 0;
+  std::optional<frontier::KdTree> tree;
+  uint64_t references = 0, decoded_pages = 0, trees = 0;
   std::vector<uint8_t> page_used(pages, 0);
   frontier::Progress progress("verify", "cells", model.cells().size(), quiet);
   for (uint32_t c = 0; c < model.cells().size(); ++c) {
@@ -152,7 +167,10 @@ int verify(const std::string& path, bool quiet) {
         return fail(frontier::Status::corruption(fmt::format("{}: page {} belongs to two cells", path, rec.page)));
       }
       page_used[rec.page] = 1;
-      if (frontier::Status s = model.read_cell(c, cell); !s) return fail(s);
+      // An in-cell tree is decoded and assembled over its cell (structure, references, depth).
+      const frontier::KdBuildOptions tree_options = model.info().cell_tree.value_or(frontier::KdBuildOptions{});
+      if (frontier::Status s = model.read_cell(c, cell, tree_options, tree); !s) return fail(s);
+      trees += tree ? 1 : 0;
       if (cell.size() != rec.references) {
         return fail(frontier::Status::corruption(fmt::format("{}: cell {} page {}: {} primitives, its record says {}",
                                                              path, c, rec.page, cell.size(), rec.references)));
@@ -200,7 +218,8 @@ int verify(const std::string& path, bool quiet) {
             ? fmt::format(", {} rooms and {} portals", model.portals()->room_count(), model.portals()->portal_count())
             : "";
     const std::string grid = (bricks > 0 ? fmt::format(", {} collision bricks", bricks) : "") +
-                             (proxies > 0 ? fmt::format(", {} proxies", proxies) : "");
+                             (proxies > 0 ? fmt::format(", {} proxies", proxies) : "") +
+                             (trees > 0 ? fmt::format(", {} in-cell trees", trees) : "");
     std::printf("%s: ok: %zu pages checksummed, %llu decoded, %llu references in %zu cells, tree depth %u%s%s\n",
                 path.c_str(), pages, static_cast<unsigned long long>(decoded_pages + bricks + proxies),
                 static_cast<unsigned long long>(references), model.cells().size(), model.depth(), portals.c_str(),
@@ -220,11 +239,12 @@ int main(int argc, char** argv) {
   std::string path;
   bool quiet = false;
   auto* info_cmd = app.add_subcommand(
-      "info", "primitives, cells, depth, bytes per triangle, codec, lattice, collision grid, rooms and portals, proxies "
+      "info", "primitives, cells, depth, bytes per triangle, codec, in-cell trees, lattice, collision grid, rooms and portals, proxies "
       "(pages, bytes, error by depth), sections, cell size histogram");
   info_cmd->add_option("file", path, "store file")->required();
   auto* verify_cmd = app.add_subcommand(
-      "verify", "check every checksum and structural invariant and decode every page (cells, collision bricks and proxies); exit 1 "
+      "verify", "check every checksum and structural invariant and decode every page (cells with their in-cell trees, "
+      "collision bricks and proxies); exit 1 "
       "naming the first bad one");
   verify_cmd->add_option("file", path, "store file")->required();
   verify_cmd->add_flag("-q,--quiet", quiet, "print nothing when the store is good");

@@ -6,7 +6,9 @@
 #include <array>
 #include <cassert>
 #include <cmath>
+#include <deque>
 
+#include <fmt/format.h>
 #include <tbb/parallel_invoke.h>
 
 namespace frontier {
@@ -35,6 +37,18 @@ Aabb padded(const Aabb& b, double scale) {
   return r;
 }
 
+// Where the binned SAH bins a node's items on one axis: the part of the node's extent they
+// occupy, cut into `bins` bins (width 0: the items are flat there and that axis is not split).
+struct BinRange {
+  double lo, hi, width;
+};
+BinRange bin_range(const Aabb& box, const Aabb& occupied, int axis, int bins) {
+  const double lo = std::max(box.lo[axis], occupied.lo[axis]);
+  const double hi = std::min(box.hi[axis], occupied.hi[axis]);
+  return {lo, hi, (hi - lo) / bins};
+}
+double bin_boundary(double lo, double width, int k) { return lo + k * width; }
+
 }  // namespace
 
 class KdBuilder {
@@ -42,20 +56,12 @@ class KdBuilder {
   KdBuilder(KdTree& tree, const KdBuildOptions& options) : tree_(tree), options_(options) {}
 
   void build(const Scene& scene) {
-    std::vector<Item> items;
-    items.reserve(scene.size());
+    std::vector<Item> items = scene_items(scene);
     Aabb root;
-    for (uint32_t i = 0; i < scene.size(); ++i) {
-      const Aabb b = scene.prim_bounds(i);
-      if (b.empty()) continue;
-      items.push_back({i, b});
-      root.extend(b);
-    }
+    for (const Item& it : items) root.extend(it.box);
     if (options_.root) {
-      const Aabb given = *options_.root;
-      const double scale = std::max(glm::length(given.extent()), 1e-300);
-      clip_items(items, given, scale);
-      root = given;
+      root = *options_.root;
+      clip_to_root(items, root);
     } else {
       if (items.empty()) root = Aabb(Vec3(-1.0), Vec3(1.0));
       const double scale = std::max(glm::length(root.extent()), 1e-300);
@@ -79,7 +85,95 @@ class KdBuilder {
     finish(top_bounds);
   }
 
+  // build() with options.root = root and the splits `splits` names instead of searched ones.
+  Status assemble(const Scene& scene, const Aabb& root, KdSplitSource& splits, uint32_t max_depth,
+                  size_t max_references) {
+    std::vector<Item> items = scene_items(scene);
+    clip_to_root(items, root);
+    tree_.bounds_ = root;
+    levels_.clear();
+    levels_.push_back(std::move(items));
+    max_depth_ = max_depth;
+    max_references_ = max_references;
+    if (Status s = assemble_node(splits, 0, root); !s) return s;
+    finish(root);
+    return Status::ok();
+  }
+
  private:
+  // The scene's primitives with non-empty bounds, in scene order (build()'s items before clipping).
+  static std::vector<Item> scene_items(const Scene& scene) {
+    std::vector<Item> items;
+    items.reserve(scene.size());
+    for (uint32_t i = 0; i < scene.size(); ++i) {
+      const Aabb b = scene.prim_bounds(i);
+      if (!b.empty()) items.push_back({i, b});
+    }
+    return items;
+  }
+
+  // Clips items to a given root region (options.root: no padding of the root itself).
+  static void clip_to_root(std::vector<Item>& items, const Aabb& root) {
+    clip_items(items, root, std::max(glm::length(root.extent()), 1e-300));
+  }
+
+  // Which side(s) of a split at `pos` on `axis` an item (clipped to the node) goes to: a flat
+  // item on the plane goes to both.
+  static bool goes_left(const Item& it, int axis, double pos) {
+    return it.box.lo[axis] < pos || (it.box.lo[axis] == pos && it.box.hi[axis] == pos);
+  }
+  static bool goes_right(const Item& it, int axis, double pos) {
+    return it.box.hi[axis] > pos || (it.box.lo[axis] == pos && it.box.hi[axis] == pos);
+  }
+
+  // One node of assemble(): its items are levels_[depth]; children use the deeper levels, so
+  // one buffer per depth serves every node (no allocation per node once they have grown).
+  Status assemble_node(KdSplitSource& splits, uint32_t depth, const Aabb& box) {
+    const auto index = static_cast<uint32_t>(tree_.nodes_.size());
+    const auto corrupt = [&](std::string_view what) {
+      return Status::corruption(fmt::format("stored tree: node {}: {}", index, what));
+    };
+    if (depth > max_depth_) return corrupt(fmt::format("deeper than {}", max_depth_));
+    tree_.nodes_.push_back({});
+    tree_.depth_ = std::max(tree_.depth_, depth);
+    const int axis = splits.next_axis(levels_[depth].size());
+    if (axis == KdSplitSource::kLeaf) {
+      if (tree_.refs_.size() + levels_[depth].size() > max_references_) {
+        return corrupt(fmt::format("more than {} references", max_references_));
+      }
+      make_leaf(index, levels_[depth], box);
+      return Status::ok();
+    }
+    if (axis < 0 || axis > 2) return corrupt("bad node");
+    Aabb occupied;
+    for (const Item& it : levels_[depth]) occupied.extend(it.box);
+    const double pos = splits.split(box, occupied, axis);
+    if (!(pos > box.lo[axis] && pos < box.hi[axis])) return corrupt("split outside its region");
+    if (levels_.size() == depth + 1) levels_.emplace_back();  // a deque: references stay valid
+    const std::vector<Item>& items = levels_[depth];
+    std::vector<Item>& side = levels_[depth + 1];
+    Aabb lbox = box, rbox = box;
+    lbox.hi[axis] = pos;
+    rbox.lo[axis] = pos;
+    side.clear();
+    for (const Item& it : items) {
+      if (!goes_left(it, axis, pos)) continue;
+      side.push_back(it);
+      side.back().box.hi[axis] = std::min(it.box.hi[axis], pos);
+    }
+    if (Status s = assemble_node(splits, depth + 1, lbox); !s) return s;
+    side.clear();
+    for (const Item& it : items) {
+      if (!goes_right(it, axis, pos)) continue;
+      side.push_back(it);
+      side.back().box.lo[axis] = std::max(it.box.lo[axis], pos);
+    }
+    const auto upper = static_cast<uint32_t>(tree_.nodes_.size());
+    if (Status s = assemble_node(splits, depth + 1, rbox); !s) return s;
+    tree_.nodes_[index] = {pos, static_cast<uint32_t>(axis), upper};
+    return Status::ok();
+  }
+
   // Pads item bounds and clips them to `box`, dropping items that miss it.
   static void clip_items(std::vector<Item>& items, const Aabb& box, double scale) {
     size_t kept = 0;
@@ -146,9 +240,10 @@ class KdBuilder {
     std::array<double, 3> lo{}, hi{}, width{}, per_width{};
     std::array<bool, 3> binned{};
     for (int axis = 0; axis < 3; ++axis) {
-      lo[axis] = std::max(box.lo[axis], occupied.lo[axis]);
-      hi[axis] = std::min(box.hi[axis], occupied.hi[axis]);
-      width[axis] = (hi[axis] - lo[axis]) / bins;
+      const BinRange range = bin_range(box, occupied, axis, bins);
+      lo[axis] = range.lo;
+      hi[axis] = range.hi;
+      width[axis] = range.width;
       binned[axis] = width[axis] > 0.0;
       per_width[axis] = binned[axis] ? 1.0 / width[axis] : 0.0;
     }
@@ -194,7 +289,7 @@ class KdBuilder {
       for (int k = 1; k < bins; ++k) {
         left += starts[axis][k - 1];
         right -= ends[axis][k - 1];
-        const double pos = lo[axis] + k * width[axis];
+        const double pos = bin_boundary(lo[axis], width[axis], k);
         if (!(pos > box_lo && pos < box_hi)) continue;
         double cost = options_.traversal_cost +
                       per_area * (side_area(pos - box_lo) * static_cast<double>(left) +
@@ -233,27 +328,21 @@ class KdBuilder {
     lbox.hi[axis] = pos;
     rbox.lo[axis] = pos;
     // Item boxes lie inside `box`, so clipping one to a side changes only the split axis.
-    auto goes_left = [&](const Item& it) {
-      return it.box.lo[axis] < pos || (it.box.lo[axis] == pos && it.box.hi[axis] == pos);
-    };
-    auto goes_right = [&](const Item& it) {
-      return it.box.hi[axis] > pos || (it.box.lo[axis] == pos && it.box.hi[axis] == pos);
-    };
     size_t nl = 0, nr = 0;
     for (const Item& it : items) {
-      nl += goes_left(it) ? 1 : 0;
-      nr += goes_right(it) ? 1 : 0;
+      nl += goes_left(it, axis, pos) ? 1 : 0;
+      nr += goes_right(it, axis, pos) ? 1 : 0;
     }
     std::vector<Item> left(nl), right(nr);
     Item* l = left.data();
     Item* r = right.data();
     for (const Item& it : items) {
-      if (goes_left(it)) {
+      if (goes_left(it, axis, pos)) {
         *l = it;
         l->box.hi[axis] = std::min(it.box.hi[axis], pos);
         ++l;
       }
-      if (goes_right(it)) {
+      if (goes_right(it, axis, pos)) {
         *r = it;
         r->box.lo[axis] = std::max(it.box.lo[axis], pos);
         ++r;
@@ -368,12 +457,29 @@ class KdBuilder {
   KdBuildOptions options_;
   uint32_t max_depth_ = 0;
   std::vector<uint32_t> counts_;  // best_split's bin counts (a builder runs on one thread at a time)
+  std::deque<std::vector<Item>> levels_;  // assemble(): the items of the current node per depth
+  size_t max_references_ = 0;             // assemble()'s limit
 };
 
 KdTree KdTree::build(const Scene& scene, const KdBuildOptions& options) {
   KdTree tree;
   KdBuilder builder(tree, options);
   builder.build(scene);
+  return tree;
+}
+
+double KdTree::split_candidate(const Aabb& region, const Aabb& occupied, int axis, int k, int bins) {
+  const BinRange range = bin_range(region, occupied, axis, bins);
+  if (k <= 0) return range.lo;
+  if (k >= bins) return range.hi;
+  return range.width > 0.0 ? bin_boundary(range.lo, range.width, k) : range.lo;
+}
+
+Result<KdTree> KdTree::assemble(const Scene& scene, const Aabb& root, KdSplitSource& splits, uint32_t max_depth,
+                                size_t max_references) {
+  KdTree tree;
+  KdBuilder builder(tree, KdBuildOptions{});
+  if (Status s = builder.assemble(scene, root, splits, max_depth, max_references); !s) return s;
   return tree;
 }
 

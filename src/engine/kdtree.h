@@ -13,7 +13,9 @@
 
 #include "src/core/geometry.h"
 #include "src/core/scene.h"
+#include "src/core/status.h"
 
+#include <cstddef>
 #include <cstdint>
 #include <optional>
 #include <vector>
@@ -40,6 +42,21 @@ struct KdBuildOptions {
   // When set, the root is exactly this box (no padding) and primitives are clipped to it:
   // how the out-of-core builder builds one partition, and how a store's cells are refined.
   std::optional<Aabb> root;
+};
+
+// Where KdTree::assemble() finds a tree's splits: asked node by node in preorder (the order in
+// which build() makes nodes), as a stored in-cell tree is read back.
+class KdSplitSource {
+ public:
+  static constexpr int kLeaf = -1;
+  static constexpr int kBad = -2;
+  virtual ~KdSplitSource() = default;
+  // The next node, which holds `items` items: kLeaf, its split axis (0..2), or kBad when the
+  // stored tree is damaged.
+  virtual int next_axis(size_t items) = 0;
+  // The split position on `axis` of the node next_axis() just named, given its region and the
+  // extent its items occupy (their bounds clipped to the region; see KdTree::split_candidate).
+  virtual double split(const Aabb& region, const Aabb& occupied, int axis) = 0;
 };
 
 class KdTree {
@@ -79,6 +96,20 @@ class KdTree {
   // build(); with options.min_cell_prims = UINT32_MAX the top cells stay as they are.
   static KdTree refine(const Scene& scene, const std::vector<Node>& top_nodes, const Aabb& top_bounds,
                        const std::vector<std::vector<uint32_t>>& cell_prims, const KdBuildOptions& options = {});
+
+  // Split candidate k (0..bins) on `axis` of a node over `region` whose items occupy `occupied`:
+  // exactly the positions build()'s binned SAH tries (k = 0 and k = bins: the ends of the
+  // occupied extent, cutting off empty space; in between, the bin boundaries). Not strictly
+  // inside the region when build() would not try it there (items flat on that axis).
+  static double split_candidate(const Aabb& region, const Aabb& occupied, int axis, int k, int bins);
+  // The tree build(scene, options) gives, with options.root = `root`, when its nodes split where
+  // `splits` says: the same items, clipping, ties, references (in the same order), cell bounds,
+  // content, ropes and depth, without the SAH search (how a paged-in cell's stored tree is
+  // loaded). Corruption naming the node when `splits` reports damage, a split does not lie
+  // strictly inside its node, the tree gets deeper than `max_depth` or would hold more than
+  // `max_references` references; `splits` is not asked again after a failure.
+  static Result<KdTree> assemble(const Scene& scene, const Aabb& root, KdSplitSource& splits, uint32_t max_depth,
+                                 size_t max_references);
 
   // The tree of `nodes` over `bounds` alone — a store's top tree — with ropes, every cell empty
   // and numbered as its leaf node's `child` says (cell c is the store's cell c).

@@ -145,12 +145,18 @@ void PagedWorld::decode(uint32_t cell, Decoded& out) const {
     }
     return;
   }
-  out.status = model_.decode_page(cell, pin->codec(), pin->bytes(), out.scene);
+  // The page's stored in-cell tree when it carries one built with cell_build_; else the build.
+  std::optional<KdTree> stored;
+  out.status = model_.decode_page(cell, pin->codec(), pin->bytes(), out.scene, cell_build_, stored);
   pin->reset();
   if (!out.status) return;
-  KdBuildOptions options = cell_build_;
-  options.root = model_.cells()[cell].bounds;
-  out.tree = KdTree::build(out.scene, options);
+  if (stored) {
+    out.tree = std::move(*stored);
+  } else {
+    KdBuildOptions options = cell_build_;
+    options.root = model_.cells()[cell].bounds;
+    out.tree = KdTree::build(out.scene, options);
+  }
   out.bytes = charge_of(out.scene, out.tree);
 }
 

@@ -4,6 +4,7 @@
 #include "src/paging/store_model.h"
 
 #include "src/core/byte_io.h"
+#include "src/paging/cell_tree.h"
 #include "store/page_file.h"
 
 #include <fmt/format.h>
@@ -16,7 +17,9 @@ namespace {
 
 constexpr size_t kNodeBytes = 16;   // f64 split, u32 axis_or_leaf, u32 child
 constexpr size_t kCellBytes = 112;  // 12 f64 bounds/content, u32 references, u32 0, u64 page
-constexpr int kModelVersion = 1;
+// Version 2: cell pages may carry in-cell trees (model section `cell_tree`); a store without them
+// is still written as version 1, which readers that predate trees open.
+constexpr int kModelVersion = 2;
 
 nlohmann::json vec_json(const Vec3& v) { return nlohmann::json::array({v.x, v.y, v.z}); }
 Vec3 json_vec(const nlohmann::json& j) {
@@ -205,7 +208,7 @@ Status read_proxies(const store::StoreReader& reader, const std::vector<KdTree::
 
 std::vector<uint8_t> StoreModelInfo::to_bytes() const {
   nlohmann::json j;
-  j["version"] = kModelVersion;
+  j["version"] = cell_tree ? kModelVersion : 1;
   j["codec"] = std::string(cell_codec_name(codec));
   j["lattice"] = {{"origin", vec_json(lattice.origin)}, {"step", lattice.step}, {"bits", lattice.bits}};
   j["bounds"] = {{"lo", vec_json(bounds.lo)}, {"hi", vec_json(bounds.hi)}};
@@ -232,6 +235,19 @@ std::vector<uint8_t> StoreModelInfo::to_bytes() const {
   j["walkable"] = walkable;
   j["sdf_voxel"] = sdf_voxel;
   j["walk_radius"] = walk_radius;
+  if (cell_tree) {
+    const KdBuildOptions& o = *cell_tree;
+    j["cell_tree"] = {{"max_cell_prims", o.max_cell_prims},
+                      {"min_cell_prims", o.min_cell_prims},
+                      {"forced_split_max_share", o.forced_split_max_share},
+                      {"max_depth", o.max_depth},
+                      {"traversal_cost", o.traversal_cost},
+                      {"intersection_cost", o.intersection_cost},
+                      {"empty_bonus", o.empty_bonus},
+                      {"bins", o.bins},
+                      {"pages", cell_tree_pages},
+                      {"bytes", cell_tree_bytes}};
+  }
   const std::string text = j.dump(1);
   return {text.begin(), text.end()};
 }
@@ -292,6 +308,21 @@ Result<StoreModelInfo> StoreModelInfo::from_bytes(std::span<const uint8_t> bytes
     info.walkable = j.at("walkable").get<bool>();
     info.sdf_voxel = j.at("sdf_voxel").get<double>();
     info.walk_radius = j.at("walk_radius").get<double>();
+    if (j.contains("cell_tree")) {  // stores built before in-cell trees have none
+      const auto& t = j.at("cell_tree");
+      KdBuildOptions o;
+      o.max_cell_prims = t.at("max_cell_prims").get<uint32_t>();
+      o.min_cell_prims = t.at("min_cell_prims").get<uint32_t>();
+      o.forced_split_max_share = t.at("forced_split_max_share").get<double>();
+      o.max_depth = t.at("max_depth").get<uint32_t>();
+      o.traversal_cost = t.at("traversal_cost").get<double>();
+      o.intersection_cost = t.at("intersection_cost").get<double>();
+      o.empty_bonus = t.at("empty_bonus").get<double>();
+      o.bins = t.at("bins").get<int>();
+      info.cell_tree = o;
+      info.cell_tree_pages = t.at("pages").get<uint64_t>();
+      info.cell_tree_bytes = t.at("bytes").get<uint64_t>();
+    }
   } catch (const std::exception& e) {
     return Status::corruption(fmt::format("{}: model section: {}", where, e.what()));
   }
@@ -437,17 +468,55 @@ Status StoreModel::read_cell(uint32_t cell, Scene& out) const {
 }
 
 Status StoreModel::decode_page(uint32_t cell, uint8_t codec, std::span<const uint8_t> payload, Scene& out) const {
+  std::optional<KdTree> none;
+  return decode_page(cell, codec, payload, out, nullptr, none);
+}
+
+Status StoreModel::decode_page(uint32_t cell, uint8_t codec, std::span<const uint8_t> payload, Scene& out,
+                               const KdBuildOptions& options, std::optional<KdTree>& tree) const {
+  return decode_page(cell, codec, payload, out, &options, tree);
+}
+
+Status StoreModel::read_cell(uint32_t cell, Scene& out, const KdBuildOptions& options,
+                             std::optional<KdTree>& tree) const {
   out = Scene{};
+  tree.reset();
   const StoreCell& c = cells_.at(cell);
-  if (!is_cell_codec(codec)) {
-    return Status::corruption(
-        fmt::format("{}: cell {} page {}: unknown codec {}", reader_->name(), cell, c.page, codec));
+  if (c.page == StoreCell::kNoPage) return Status::ok();
+  auto page = reader_->read_page(c.page);
+  if (!page) return page.status();
+  return decode_page(cell, page->codec, page->payload, out, &options, tree);
+}
+
+// A cell page: the codec's payload, preceded by an in-cell tree when the codec byte says so;
+// the tree is decoded only when the caller's options are the ones it was built with.
+Status StoreModel::decode_page(uint32_t cell, uint8_t codec, std::span<const uint8_t> payload, Scene& out,
+                               const KdBuildOptions* options, std::optional<KdTree>& tree) const {
+  out = Scene{};
+  tree.reset();
+  const StoreCell& c = cells_.at(cell);
+  const auto corrupt = [&](std::string_view what) {
+    out = Scene{};
+    return Status::corruption(fmt::format("{}: cell {} page {}: {}", reader_->name(), cell, c.page, what));
+  };
+  std::span<const uint8_t> tree_bytes;
+  const bool has_tree = (codec & kCellTreeFlag) != 0;
+  if (has_tree) {
+    if (!info_.cell_tree) return corrupt("carries an in-cell tree but the model section records no tree options");
+    if (Status s = split_tree_page(payload, tree_bytes, payload); !s) return corrupt(s.message());
+    codec = static_cast<uint8_t>(codec & ~kCellTreeFlag);
   }
-  Status s = decode_cell(payload, static_cast<CellCodec>(codec), info_.lattice, out);
-  if (!s) {
-    return Status::corruption(fmt::format("{}: cell {} page {}: {}", reader_->name(), cell, c.page, s.message()));
+  if (!is_cell_codec(codec)) return corrupt(fmt::format("unknown codec {}", codec));
+  if (Status s = decode_cell(payload, static_cast<CellCodec>(codec), info_.lattice, out); !s) return corrupt(s.message());
+  if (Status s = check_cell(cell, out); !s) {
+    out = Scene{};
+    return s;
   }
-  return check_cell(cell, out);
+  if (!has_tree || options == nullptr || !same_cell_build(*options, *info_.cell_tree)) return Status::ok();
+  auto decoded = decode_cell_tree(tree_bytes, out, c.bounds, *options);
+  if (!decoded) return corrupt(decoded.status().message());
+  tree.emplace(std::move(*decoded));
+  return Status::ok();
 }
 
 Status StoreModel::check_cell(uint32_t cell, const Scene& decoded) const {

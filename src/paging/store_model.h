@@ -59,6 +59,11 @@ struct StoreModelInfo {
   bool walkable = false;              // an `sdf` section exists
   double sdf_voxel = 0.0;
   double walk_radius = 0.0;           // the walker clearance the grid's band was sized for
+  // Set when cell pages carry in-cell trees (src/paging/cell_tree.h): the options they were built
+  // with (root aside), how many pages carry one and their bytes in all.
+  std::optional<KdBuildOptions> cell_tree;
+  uint64_t cell_tree_pages = 0;
+  uint64_t cell_tree_bytes = 0;
 
   std::vector<uint8_t> to_bytes() const;
   static Result<StoreModelInfo> from_bytes(std::span<const uint8_t> bytes, const std::string& where);
@@ -97,8 +102,18 @@ class StoreModel {
   // Decodes one cell's page (an empty scene for a cell without a page). Corruption naming the
   // cell and page when the page's checksum or contents are bad. Thread-safe.
   Status read_cell(uint32_t cell, Scene& out) const;
-  // The same for a page already read (by the page cache): decodes and checks it.
+  // The same for a page already read (by the page cache): decodes and checks it. A page's
+  // in-cell tree is skipped (not checked) here.
   Status decode_page(uint32_t cell, uint8_t codec, std::span<const uint8_t> payload, Scene& out) const;
+  // decode_page, and the cell's in-cell tree in `tree` when the page carries one built with
+  // `options` (root aside; same_cell_build): the tree KdTree::build(out, options) would give
+  // with options.root = the cell's region. `tree` is left empty when the page carries none or
+  // one built with other options (the caller builds it). Corruption naming the cell and page
+  // when the tree is damaged. Thread-safe.
+  Status decode_page(uint32_t cell, uint8_t codec, std::span<const uint8_t> payload, Scene& out,
+                     const KdBuildOptions& options, std::optional<KdTree>& tree) const;
+  // read_cell with the page's in-cell tree, as decode_page above.
+  Status read_cell(uint32_t cell, Scene& out, const KdBuildOptions& options, std::optional<KdTree>& tree) const;
   // Decodes node `node`'s proxy page into triangles (each with its source and material).
   // InvalidArgument when the node has no proxy page; Corruption naming the node and the page when
   // the page's checksum or contents are bad (a triangle count other than the record's, a bad
@@ -123,6 +138,8 @@ class StoreModel {
  private:
   StoreModel() = default;
   Status parse();
+  Status decode_page(uint32_t cell, uint8_t codec, std::span<const uint8_t> payload, Scene& out,
+                     const KdBuildOptions* options, std::optional<KdTree>& tree) const;
 
   std::unique_ptr<store::StoreReader> reader_;
   StoreModelInfo info_;

@@ -3,10 +3,12 @@
 // For each model: the I/O floor measured in the same run (read the input once from a cold page
 // cache + write and fsync a file of the store's size), then frontier-build's end-to-end time
 // (triangles/s and the ratio to the floor), store bytes per triangle, and the decode speed of
-// every page (pages read into memory first, so only decoding is timed) and of refining every
-// decoded page into the subtree frontier-view builds when it pages the cell in. Prints Markdown.
+// every page (pages read into memory first, so only decoding is timed), of refining every
+// decoded page into the subtree frontier-view builds when it pages the cell in, and of loading
+// that subtree from the page's in-cell tree instead (checked equal to the refine). Prints Markdown.
 #include "preprocess/build.h"
 #include "src/core/progress.h"
+#include "src/paging/cell_tree.h"
 #include "src/paging/store_model.h"
 #include "src/paging/walkthrough.h"
 
@@ -69,6 +71,10 @@ struct Decode {
   double seconds = 0.0;
   uint64_t payload_bytes = 0, primitives = 0;
   double refine_seconds = 0.0;  // building every decoded page's subtree as the viewer does on page-in
+  // Loading the subtree stored in the page instead (pages with an in-cell tree only) and what
+  // refining those same pages costs, so the two per-primitive figures compare like for like.
+  double load_seconds = 0.0, refine_tree_pages_seconds = 0.0;
+  uint64_t tree_bytes = 0, tree_primitives = 0, tree_mismatches = 0;
 };
 
 Decode decode_all(const std::string& store) {
@@ -90,15 +96,27 @@ Decode decode_all(const std::string& store) {
   Scene cell;
   for (const auto& [c, p] : pages) {
     d.payload_bytes += p.payload.size();
+    std::span<const uint8_t> tree_bytes, payload = p.payload;
+    const bool has_tree = (p.codec & kCellTreeFlag) != 0 && split_tree_page(p.payload, tree_bytes, payload);
+    const auto codec = static_cast<CellCodec>(p.codec & ~kCellTreeFlag);
     const auto t = std::chrono::steady_clock::now();
-    const bool decoded = static_cast<bool>(decode_cell(p.payload, static_cast<CellCodec>(p.codec), (*model)->info().lattice, cell));
+    const bool decoded = static_cast<bool>(decode_cell(payload, codec, (*model)->info().lattice, cell));
     d.seconds += since(t);
     if (!decoded) continue;
     d.primitives += cell.size();
     refine.root = c->bounds;
     const auto r = std::chrono::steady_clock::now();
     const KdTree subtree = KdTree::build(cell, refine);
-    d.refine_seconds += since(r);
+    const double refine_s = since(r);
+    d.refine_seconds += refine_s;
+    if (!has_tree) continue;
+    const auto l = std::chrono::steady_clock::now();
+    Result<KdTree> stored = decode_cell_tree(tree_bytes, cell, c->bounds, refine);
+    d.load_seconds += since(l);
+    d.refine_tree_pages_seconds += refine_s;
+    d.tree_bytes += tree_bytes.size();
+    d.tree_primitives += cell.size();
+    if (!stored || !same_tree(*stored, subtree)) ++d.tree_mismatches;
   }
   return d;
 }
@@ -125,7 +143,8 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
 
   std::printf("| model | codec | bits | triangles | build s | Mtri/s | I/O floor s | build/floor | MB | bytes/tri | "
-              "decode MB/s | decode Mtri/s | refine us/prim |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+              "decode MB/s | decode Mtri/s | refine us/prim | tree load us/prim | refine/load | tree bytes/tri |\n"
+              "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
   for (const std::string& model : models) {
     for (const std::string& codec : codecs) {
       for (const int b : bits) {
@@ -155,14 +174,22 @@ int main(int argc, char** argv) {
         const double floor_s = io_floor({model}, output, report->store_bytes);
         const Decode d = decode_all(output);
         const double tris = static_cast<double>(report->triangles);
-        std::printf("| %s | %s | %d | %.0f | %.2f | %.2f | %.2f | %.1f | %.1f | %.2f | %.0f | %.1f | %.2f |\n",
+        const double tree_prims = std::max(static_cast<double>(d.tree_primitives), 1.0);
+        std::printf("| %s | %s | %d | %.0f | %.2f | %.2f | %.2f | %.1f | %.1f | %.2f | %.0f | %.1f | %.2f | %.3f | %.1f | %.2f |\n",
                     std::filesystem::path(model).filename().c_str(), codec.c_str(), codec == "raw" ? 0 : b, tris,
                     build_s, tris / build_s / 1e6, floor_s, build_s / floor_s,
                     static_cast<double>(report->store_bytes) / 1e6,
                     static_cast<double>(report->store_bytes) / std::max(tris, 1.0),
                     static_cast<double>(d.payload_bytes) / 1e6 / std::max(d.seconds, 1e-9),
                     static_cast<double>(d.primitives) / 1e6 / std::max(d.seconds, 1e-9),
-                    d.refine_seconds * 1e6 / std::max(static_cast<double>(d.primitives), 1.0));
+                    d.refine_seconds * 1e6 / std::max(static_cast<double>(d.primitives), 1.0),
+                    d.load_seconds * 1e6 / tree_prims, d.refine_tree_pages_seconds / std::max(d.load_seconds, 1e-12),
+                    static_cast<double>(d.tree_bytes) / std::max(tris, 1.0));
+        if (d.tree_mismatches > 0) {
+          std::fprintf(stderr, "bench_build: %llu stored in-cell trees differ from the refine\n",
+                       static_cast<unsigned long long>(d.tree_mismatches));
+          return 1;
+        }
         std::fprintf(stderr, "  %s: read %.1f s, partition %.1f s, build %.1f s, encode %.1f s; %llu parts, %.2f GB spilled\n",
                      model.c_str(), report->ingest_seconds, report->spill_seconds, report->build_seconds,
                      report->encode_seconds, static_cast<unsigned long long>(report->parts),
