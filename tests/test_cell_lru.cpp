@@ -138,5 +138,22 @@ TEST(CellLru, LastFrameJoinsTheOrderByCell) {
   EXPECT_EQ(lru.oldest(), 2u);
 }
 
+// Ranked frames: the ending frame's cells join the order by ascending rank, ties by cell; the
+// cells of older frames still go before them.
+TEST(CellLru, LastFrameJoinsTheOrderByRank) {
+  CellLru lru(10, 100);
+  for (const uint32_t c : {4u, 8u, 3u}) lru.insert(c, 1);
+  lru.begin_frame();  // frame 1's 3, 4, 8: by cell
+  for (const uint32_t c : {1u, 6u, 9u, 2u}) lru.insert(c, 1);
+  const std::vector<double> rank = {0, 5.0, 0.5, 9, 9, 9, 0.5, 9, 9, 7.0};
+  lru.begin_frame([&](uint32_t c) { return rank[c]; });
+  std::vector<uint32_t> order;
+  while (const std::optional<uint32_t> c = lru.oldest()) {
+    order.push_back(*c);
+    lru.erase(*c);
+  }
+  EXPECT_EQ(order, (std::vector<uint32_t>{3, 4, 8, 2, 6, 1, 9}));
+}
+
 }  // namespace
 }  // namespace frontier

@@ -1,12 +1,14 @@
 // CellLru: which decoded cells a PagedWorld evicts first, and which ones it may not evict.
 //
-// The policy (paged_world.h): least recently touched frame first, ties by ascending store cell;
-// cells touched in the current frame are not victims. It is a ByteLru (store/byte_lru.h) over
-// the resident cells in which this frame's cells are pinned: begin_frame() unpins last frame's
-// cells in ascending order, so they join the evictable list as its newest entries, after every
-// cell of an earlier frame. Hence, at every moment,
+// The policy (paged_world.h): least recently touched frame first; among the cells of one frame,
+// ascending rank (PagedWorld's: the cell's screen-space size from the new frame's eye, the key
+// its decoder serves requests by; 0 when there is no eye), then ascending store cell; cells
+// touched in the current frame are not victims. It is a ByteLru (store/byte_lru.h) over the
+// resident cells in which this frame's cells are pinned: begin_frame() unpins last frame's
+// cells in ascending (rank, cell) order, so they join the evictable list as its newest
+// entries, after every cell of an earlier frame. Hence, at every moment,
 //   - the evictable entries, oldest first, are the resident cells not touched in this frame,
-//     in ascending (frame last touched, cell);
+//     in ascending (frame last touched, rank in that frame's begin_frame, cell);
 //   - the pinned entries are the resident cells touched in this frame; touched_cells() lists
 //     every cell touched in it (resident or not) in ascending order, for the callers that may
 //     go on to evict those too (PagedWorld::sync_evicting).
@@ -31,10 +33,18 @@ class CellLru {
 
   uint64_t frame() const { return frame_; }
   // Ends the current frame and starts the next.
-  void begin_frame() {
+  void begin_frame() { begin_frame([](uint32_t) { return 0.0; }); }
+  // The same, the ending frame's cells joining the order by ascending rank(cell) (ties by
+  // cell): among them, the lowest rank is evicted first.
+  template <typename Rank>
+  void begin_frame(const Rank& rank) {
+    std::vector<std::pair<double, uint32_t>> order;
+    order.reserve(touched_cells().size());
     for (const uint32_t c : touched_cells()) {
-      if (lru_.contains(c)) lru_.unpin(c);
+      if (lru_.contains(c)) order.emplace_back(rank(c), c);
     }
+    std::sort(order.begin(), order.end());
+    for (const auto& [r, c] : order) lru_.unpin(c);
     ++frame_;
     touched_.clear();
   }

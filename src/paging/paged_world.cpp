@@ -495,7 +495,20 @@ void PagedWorld::forget_dropped() {
 }
 
 void PagedWorld::begin_frame(CellMarks& marks) {
-  lru_.begin_frame();
+  // Last frame's cells join the eviction order smallest on screen first, from the new frame's
+  // eye (the decoder's priority, the other way round); without an eye, by cell.
+  Vec3 eye;
+  bool has_eye;
+  {
+    std::lock_guard<std::mutex> lock(decoder_->mutex);
+    eye = decoder_->eye;
+    has_eye = decoder_->has_eye;
+  }
+  if (has_eye) {
+    lru_.begin_frame([&](uint32_t c) { return screen_size(c, eye); });
+  } else {
+    lru_.begin_frame();
+  }
   ++image_;
   earlier_cells_.clear();
   forget_dropped();

@@ -17,8 +17,9 @@
 // Memory, one budget for everything paged: the compressed pages the PageCache holds (an eighth
 // of the budget, at least 1 MiB) plus the decoded, grafted cells (the rest). resident_bytes()
 // is their sum and stays within the budget: before a cell is grafted, cells no frame touched
-// since the oldest are unlinked (LRU by the frame that last touched them, ties by store cell:
-// CellLru, cell_lru.h); cells touched in the current frame are never evicted, so when the
+// since the oldest are unlinked (LRU by the frame that last touched them; among one frame's,
+// the smallest on screen from the next frame's eye first, the decoder's priority the other way
+// round; ties by store cell: CellLru, cell_lru.h); cells touched in the current frame are never evicted, so when the
 // current view alone needs more than the budget the newcomer is dropped (it stays missing; the
 // frame degrades to fewer samples) instead.
 // Unlinked subtrees leave garbage in the arrays; compact() at a frame boundary reclaims it.
@@ -260,6 +261,9 @@ class PagedWorld final : public CellGate {
   void start_decoder();
   void stop_decoder();
   void decoder_loop();
+  // Store cell `cell`'s size over its distance from `eye`: its size on screen, up to a constant.
+  // The decoder serves the largest first; among one frame's cells, the smallest is evicted first.
+  double screen_size(uint32_t cell, const Vec3& eye) const;
   // Takes up to `count` ready cells off wanted_, those to decode first.
   std::vector<uint32_t> pick_ready(const Vec3& eye, bool has_eye, size_t count);
   static constexpr size_t kDecodeBatch = 4;

@@ -79,12 +79,7 @@ std::vector<uint32_t> PagedWorld::pick_ready(const Vec3& eye, bool has_eye, size
   std::vector<std::pair<double, uint32_t>> ranked;
   for (size_t i = 0; i < snapshot.size(); ++i) {
     if (!in[i]) continue;
-    double key = 0.0;
-    if (has_eye) {
-      const Aabb& b = model_.cells()[snapshot[i]].bounds;
-      key = glm::length(b.hi - b.lo) / std::max(distance_to_box(eye, b), 1e-12);
-    }
-    ranked.emplace_back(-key, snapshot[i]);
+    ranked.emplace_back(has_eye ? -screen_size(snapshot[i], eye) : 0.0, snapshot[i]);
   }
   count = std::min(count, ranked.size());
   std::partial_sort(ranked.begin(), ranked.begin() + std::ptrdiff_t(count), ranked.end());
@@ -100,6 +95,11 @@ std::vector<uint32_t> PagedWorld::pick_ready(const Vec3& eye, bool has_eye, size
   std::lock_guard<std::mutex> dl(decoder_->mutex);
   decoder_->in_flight += chosen.size();
   return chosen;
+}
+
+double PagedWorld::screen_size(uint32_t cell, const Vec3& eye) const {
+  const Aabb& b = model_.cells()[cell].bounds;
+  return glm::length(b.hi - b.lo) / std::max(distance_to_box(eye, b), 1e-12);
 }
 
 void PagedWorld::decoder_loop() {
