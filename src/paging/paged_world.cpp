@@ -281,9 +281,10 @@ bool PagedWorld::sync_impl(std::chrono::steady_clock::time_point deadline, bool 
     pass.later.clear();
   }
   if (!proxy_.empty() && stand_in_wanted(deadline)) pass.changed = true;
-  // In frames that stand in for missing cells, the decoder thread decodes alone: the frame's
-  // thread only grafts (a stand-in covers what is not in yet).
-  const std::vector<uint32_t> ready = take_ready(!stand_in_missing_ || decoder_blocked());
+  // In frames that may end before every page is in (pegged), the decoder thread decodes alone
+  // (unless it waits for room): the frame's thread only grafts, and its time goes to rays (a
+  // stand-in, or the reconstruction, covers what is not in yet).
+  const std::vector<uint32_t> ready = take_ready(!budgeted_ || decoder_blocked());
   const size_t batch = std::max<size_t>(4, 2 * static_cast<size_t>(tbb::info::default_concurrency()));
   for (size_t b = 0; b < ready.size(); b += batch) {
     if (pass.full || std::chrono::steady_clock::now() >= deadline) {
@@ -323,23 +324,23 @@ bool PagedWorld::sync_impl(std::chrono::steady_clock::time_point deadline, bool 
 
 double PagedWorld::wait_for_pages(std::chrono::steady_clock::time_point deadline) {
   const auto start = std::chrono::steady_clock::now();
-  // With stand-ins the decoder does the decoding, and it may be waiting for the room the next
+  // In pegged frames the decoder does the decoding, and it may be waiting for the room the next
   // sync() publishes: never wait long without one.
-  if (stand_in_missing_) deadline = std::min(deadline, start + std::chrono::milliseconds(20));
+  if (budgeted_) deadline = std::min(deadline, start + std::chrono::milliseconds(20));
   while (std::chrono::steady_clock::now() < deadline) {
     {
       std::lock_guard<std::mutex> lock(wanted_mutex_);
       bool blocked = false;
       {
         std::lock_guard<std::mutex> dl(decoder_->mutex);
-        if (!decoder_->done.empty()) break;
+        if (!decoder_->done.empty() || !decoder_->proxies_done.empty()) break;
         if (wanted_.empty() && decoder_->in_flight == 0) break;
         blocked = decoder_->blocked;
       }
-      // A page in the cache is news only to a sync() that decodes (not in frames that stand in
-      // for missing cells: the decoder takes it); so is a proxy page.
+      // A page in the cache is news only to a sync() that decodes (not in pegged frames: the
+      // decoder takes it, and proxy pages too).
       bool any = false;
-      const bool decodes_here = !stand_in_missing_ || blocked;
+      const bool decodes_here = !budgeted_ || blocked;
       for (size_t k = 0; k < wanted_.size() && !any; ++k) {
         const uint64_t page = model_.cells()[wanted_[k]].page;
         if (cache_->ready(page) || cache_->failed(page)) {
@@ -351,7 +352,7 @@ double PagedWorld::wait_for_pages(std::chrono::steady_clock::time_point deadline
           cache_->request(page);
         }
       }
-      for (size_t k = 0; k < proxy_wanted_.size() && !any; ++k) {
+      for (size_t k = 0; k < proxy_wanted_.size() && !budgeted_ && !any; ++k) {
         const uint64_t page = model_.proxy(proxy_wanted_[k])->page;
         any = cache_->ready(page) || cache_->failed(page);
       }

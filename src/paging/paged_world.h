@@ -193,8 +193,9 @@ class PagedWorld final : public CellGate {
 
   // Stand-ins for the next frame (call before begin_frame()): the view, the pixel error below
   // which a proxy draws a cell instead of its page (0: never), and whether cells whose pages are
-  // missing are drawn by an ancestor's proxy meanwhile. Stand-ins that no longer qualify are
-  // unlinked at begin_frame().
+  // missing are drawn by an ancestor's proxy meanwhile (the frame is pegged: then, proxies or
+  // not, the decoder thread decodes alone). Stand-ins that no longer qualify are unlinked at
+  // begin_frame().
   void set_detail(const View& view, double pixel_error, bool stand_in_missing);
   bool has_proxies() const { return !proxy_.empty(); }
   // World primitive `p` belongs to a stand-in (now or when it was confirmed: unlinked stand-ins'
@@ -232,6 +233,7 @@ class PagedWorld final : public CellGate {
   struct Decoded;
   struct SyncPass;
   struct ProxySlot;
+  struct ProxyDecoded;
   struct DecoderState;
   void decode(uint32_t cell, Decoded& out) const;
   bool sync_impl(std::chrono::steady_clock::time_point deadline, bool evict);
@@ -264,6 +266,11 @@ class PagedWorld final : public CellGate {
   // Store cell `cell`'s size over its distance from `eye`: its size on screen, up to a constant.
   // The decoder serves the largest first; among one frame's cells, the smallest is evicted first.
   double screen_size(uint32_t cell, const Vec3& eye) const;
+  // Takes up to `count` proxies whose pages arrived (or failed) off proxy_wanted_.
+  std::vector<uint32_t> pick_ready_proxies(size_t count);
+  // Decodes node `node`'s proxy page and builds its tree (any thread: reads the model only).
+  // False when the page left the cache meanwhile.
+  bool decode_proxy(uint32_t node, ProxyDecoded& out) const;
   // Takes up to `count` ready cells off wanted_, those to decode first.
   std::vector<uint32_t> pick_ready(const Vec3& eye, bool has_eye, size_t count);
   static constexpr size_t kDecodeBatch = 4;
@@ -289,6 +296,8 @@ class PagedWorld final : public CellGate {
   double pixels_of(uint32_t node) const;
   // `node` has a resident proxy whose error stays below the pixel error (node_pixels_).
   bool detail_ok(int32_t node) const;
+  // Makes a decoded proxy resident (or marks it failed); true when it became resident.
+  bool install_proxy(ProxyDecoded& p);
   // Decodes the proxies whose pages arrived; true when one did.
   bool load_proxies(std::chrono::steady_clock::time_point deadline);
   void drop_proxies_over_budget();
@@ -373,6 +382,9 @@ class PagedWorld final : public CellGate {
   std::vector<double> node_pixels_;      // per top node, pixels_of() for detail_view_
   double pixel_error_ = 0.0;
   bool stand_in_missing_ = false;
+  // Frames may end before every page is in (pegged): the decoder thread decodes alone, the
+  // frame's thread only places what it finished (set_detail()).
+  bool budgeted_ = false;
 
   std::unique_ptr<std::atomic<uint8_t>[]> wanted_flag_;  // store cell: in wanted_ already
   mutable std::mutex wanted_mutex_;

@@ -106,6 +106,26 @@ void PagedWorld::decoder_loop() {
   DecoderState& s = *decoder_;
   uint64_t blocked_at = UINT64_MAX;  // room generation at which a decode did not fit
   while (true) {
+    // Proxies first, whatever the room (they are small, and coarse to fine needs them): decoded
+    // and their trees built here; the frame's thread only installs them (load_proxies).
+    if (!proxy_.empty()) {
+      for (const uint32_t node : pick_ready_proxies(kDecodeBatch)) {
+        ProxyDecoded p;
+        const auto start = std::chrono::steady_clock::now();
+        bool decoded = false;
+        s.arena.execute([&] { decoded = decode_proxy(node, p); });
+        const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+        if (!decoded) {
+          std::lock_guard<std::mutex> lock(wanted_mutex_);  // its page went: asked for again
+          proxy_wanted_.push_back(node);
+          cache_->request(model_.proxy(node)->page);
+          continue;
+        }
+        std::lock_guard<std::mutex> lock(s.mutex);
+        s.ms += ms;
+        s.proxies_done.push_back(std::move(p));
+      }
+    }
     Vec3 eye;
     bool has_eye;
     {

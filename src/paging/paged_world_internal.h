@@ -6,6 +6,7 @@
 #include <tbb/task_arena.h>
 
 #include <condition_variable>
+#include <optional>
 #include <thread>
 
 namespace frontier {
@@ -36,6 +37,16 @@ struct PagedWorld::Decoded {
   int32_t stand_in = -1;  // a proxy subtree: the node whose proxy it is
 };
 
+// A top node's proxy decoded by the decoder thread, with the k-d tree of its triangles over the
+// node's region (what graft_proxy() appends), not installed yet.
+struct PagedWorld::ProxyDecoded {
+  uint32_t node = 0;
+  bool page_failed = false;  // the page could not be read (the cache counted the error)
+  Status status;
+  Scene scene;
+  KdTree tree;
+};
+
 // A top node's proxy as the world holds it: its triangles (source and material kept) and their
 // bounds, so a cell's stand-in takes the ones overlapping its region without testing the rest
 // twice.
@@ -52,6 +63,7 @@ struct PagedWorld::ProxySlot {
   uint8_t last_link = 0;     // why it was linked last (the report, after it gave way)
   bool drawn = false;        // linked, and its subtree was reached by the last image's rays
   KdTree::Node saved;        // the top node as the store has it, while linked
+  std::optional<KdTree> tree;  // its triangles' tree over the node's region, when decoded ahead
 };
 
 // The decoder thread's shared state (paged_world_decoder.cpp). Lock order: wanted_mutex_, then
@@ -72,6 +84,7 @@ struct PagedWorld::DecoderState {
   Vec3 eye{0.0};                  // the current view's eye (priority)
   bool has_eye = false;
   double ms = 0.0;                // decoding time since the last take_decoded()
+  std::vector<ProxyDecoded> proxies_done;  // proxies decoded, not installed yet
 };
 
 }  // namespace frontier

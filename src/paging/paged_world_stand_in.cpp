@@ -109,58 +109,89 @@ void PagedWorld::request_proxies(uint32_t cell) {
   cache_->request(model_.proxy(uint32_t(below))->page);
 }
 
-bool PagedWorld::load_proxies(std::chrono::steady_clock::time_point deadline) {
+std::vector<uint32_t> PagedWorld::pick_ready_proxies(size_t count) {
   std::vector<uint32_t> arrived;
-  {
-    std::lock_guard<std::mutex> lock(wanted_mutex_);
-    std::vector<uint32_t> waiting;
-    for (const uint32_t n : proxy_wanted_) {
-      const uint64_t page = model_.proxy(n)->page;
-      (cache_->ready(page) || cache_->failed(page) ? arrived : waiting).push_back(n);
-    }
-    proxy_wanted_.swap(waiting);
-  }
-  bool any = false;
-  for (size_t k = 0; k < arrived.size(); ++k) {
-    const uint32_t n = arrived[k];
-    ProxySlot& slot = proxy_[n];
-    if (k >= kMinStandInWork && std::chrono::steady_clock::now() >= deadline) {
-      std::lock_guard<std::mutex> lock(wanted_mutex_);  // the rest in a later sync()
-      proxy_wanted_.insert(proxy_wanted_.end(), arrived.begin() + std::ptrdiff_t(k), arrived.end());
-      break;
-    }
-    slot.requested = false;
+  std::lock_guard<std::mutex> lock(wanted_mutex_);
+  std::vector<uint32_t> waiting;
+  for (const uint32_t n : proxy_wanted_) {
     const uint64_t page = model_.proxy(n)->page;
-    std::optional<store::Pin> pin = cache_->try_pin(page);
-    if (!pin) {
-      if (cache_->failed(page)) {
-        slot.failed = true;  // drawn by a coarser proxy (or the page) from now on
-      } else {
-        std::lock_guard<std::mutex> lock(wanted_mutex_);
-        slot.requested = true;
-        proxy_wanted_.push_back(n);
-        cache_->request(page);
+    const bool in = arrived.size() < count && (cache_->ready(page) || cache_->failed(page));
+    (in ? arrived : waiting).push_back(n);
+  }
+  proxy_wanted_.swap(waiting);
+  return arrived;
+}
+
+bool PagedWorld::decode_proxy(uint32_t node, ProxyDecoded& out) const {
+  out.node = node;
+  const uint64_t page = model_.proxy(node)->page;
+  std::optional<store::Pin> pin = cache_->try_pin(page);
+  if (!pin) {
+    if (!cache_->failed(page)) return false;
+    out.page_failed = true;
+    out.status = Status::io_error(fmt::format("proxy page {} could not be read", page));
+    return true;
+  }
+  out.status = model_.decode_proxy_page(node, pin->codec(), pin->bytes(), out.scene);
+  pin->reset();
+  if (!out.status) return true;
+  KdBuildOptions options = cell_build_;
+  options.root = model_.node_region(node);
+  out.tree = KdTree::build(out.scene, options);
+  return true;
+}
+
+bool PagedWorld::install_proxy(ProxyDecoded& p) {
+  ProxySlot& slot = proxy_[p.node];
+  slot.requested = false;
+  if (!p.status) {
+    slot.failed = true;  // drawn by a coarser proxy (or the page) from now on
+    if (!p.page_failed) ++counters_.page_errors;
+    return false;
+  }
+  slot.scene = std::move(p.scene);
+  slot.bounds.resize(slot.scene.size());
+  for (uint32_t i = 0; i < slot.scene.size(); ++i) slot.bounds[i] = slot.scene.prim_bounds(i);
+  slot.tree = std::move(p.tree);
+  slot.bytes = slot.scene.triangles.size() * (sizeof(Triangle) + sizeof(PrimRef) + sizeof(Aabb)) +
+               slot.scene.triangle_normals.size() * sizeof(std::array<Vec3, 3>) + slot.tree->nodes().size() * sizeof(KdTree::Node) +
+               slot.tree->cells().size() * sizeof(KdTree::Cell) + slot.tree->reference_count() * (sizeof(uint32_t) + sizeof(Aabb));
+  slot.resident = true;
+  slot.used = ++proxy_use_;
+  proxy_bytes_ += slot.bytes;
+  ++counters_.proxies_loaded;
+  return true;
+}
+
+bool PagedWorld::load_proxies(std::chrono::steady_clock::time_point deadline) {
+  bool any = false;
+  // What the decoder thread decoded (and built) ahead: installed here.
+  std::vector<ProxyDecoded> ahead;
+  if (decoder_) {  // none yet at the cold start (open_proxies)
+    std::lock_guard<std::mutex> lock(decoder_->mutex);
+    ahead.swap(decoder_->proxies_done);
+  }
+  for (ProxyDecoded& p : ahead) any = install_proxy(p) || any;
+  // In frames that stand in for missing pages, the decoder decodes proxies alone (the frame's
+  // thread only installs them); in frames that wait for their pages, and at the cold start,
+  // this thread decodes those that arrived too, until the deadline.
+  if (!budgeted_ || deadline == std::chrono::steady_clock::time_point::max()) {
+    const std::vector<uint32_t> arrived = pick_ready_proxies(SIZE_MAX);
+    for (size_t k = 0; k < arrived.size(); ++k) {
+      if (k >= kMinStandInWork && std::chrono::steady_clock::now() >= deadline) {
+        std::lock_guard<std::mutex> lock(wanted_mutex_);  // the rest in a later sync()
+        proxy_wanted_.insert(proxy_wanted_.end(), arrived.begin() + std::ptrdiff_t(k), arrived.end());
+        break;
       }
-      continue;
+      ProxyDecoded p;
+      if (!decode_proxy(arrived[k], p)) {
+        std::lock_guard<std::mutex> lock(wanted_mutex_);  // its page went: asked for again
+        proxy_wanted_.push_back(arrived[k]);
+        cache_->request(model_.proxy(arrived[k])->page);
+        continue;
+      }
+      any = install_proxy(p) || any;
     }
-    Scene scene;
-    const Status s = model_.decode_proxy_page(n, pin->codec(), pin->bytes(), scene);
-    pin->reset();
-    if (!s) {
-      slot.failed = true;
-      ++counters_.page_errors;
-      continue;
-    }
-    slot.scene = std::move(scene);
-    slot.bounds.resize(slot.scene.size());
-    for (uint32_t i = 0; i < slot.scene.size(); ++i) slot.bounds[i] = slot.scene.prim_bounds(i);
-    slot.bytes = slot.scene.triangles.size() * (sizeof(Triangle) + sizeof(PrimRef) + sizeof(Aabb)) +
-                 slot.scene.triangle_normals.size() * sizeof(std::array<Vec3, 3>);
-    slot.resident = true;
-    slot.used = ++proxy_use_;
-    proxy_bytes_ += slot.bytes;
-    ++counters_.proxies_loaded;
-    any = true;
   }
   if (any) drop_proxies_over_budget();
   return any;
@@ -205,9 +236,13 @@ bool PagedWorld::graft_proxy(uint32_t node) {
   d.cell = node;
   d.stand_in = int32_t(node);
   d.scene = slot.scene;
-  KdBuildOptions options = cell_build_;
-  options.root = model_.node_region(node);
-  d.tree = KdTree::build(d.scene, options);
+  if (slot.tree) {
+    d.tree = *slot.tree;  // built when it was decoded (kept: the graft may be released and made again)
+  } else {
+    KdBuildOptions options = cell_build_;
+    options.root = model_.node_region(node);
+    d.tree = KdTree::build(d.scene, options);
+  }
   d.bytes = d.scene.prims.size() * (sizeof(PrimRef) + sizeof(Triangle)) +
             d.tree.nodes().size() * sizeof(KdTree::Node) + d.tree.cells().size() * (sizeof(KdTree::Cell) + 56) +
             d.tree.reference_count() * (sizeof(uint32_t) + sizeof(Aabb));
@@ -417,6 +452,7 @@ void PagedWorld::set_detail(const View& view, double pixel_error, bool stand_in_
   set_decode_eye(view.eye);
   pixel_error_ = proxy_.empty() ? 0.0 : pixel_error;
   stand_in_missing_ = !proxy_.empty() && stand_in_missing;
+  budgeted_ = stand_in_missing;
   node_pixels_.assign(proxy_.size(), kInfinity);
   if (pixel_error_ > 0.0) {
     for (size_t n = 0; n < proxy_.size(); ++n) node_pixels_[n] = pixels_of(uint32_t(n));
