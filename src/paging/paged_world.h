@@ -313,6 +313,8 @@ class PagedWorld final : public CellGate {
   // Sets the tree's cover of the nodes below `node` (the outermost linked ancestor of each), so
   // that a rope into a linked node's region goes through the link (after node links or unlinks).
   void cover_subtree(uint32_t node);
+  // A node below top node `node` is linked.
+  bool linked_below(uint32_t node) const;
   // The linked node at or above top node `node` (-1: none).
   int32_t link_above(uint32_t node) const;
   // Every cell under `node` is resident, failed or empty.

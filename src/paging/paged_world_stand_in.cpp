@@ -255,6 +255,11 @@ bool PagedWorld::graft_proxy(uint32_t node) {
   return true;
 }
 
+bool PagedWorld::linked_below(uint32_t node) const {
+  return std::any_of(linked_nodes_.begin(), linked_nodes_.end(),
+                     [&](uint32_t n) { return n > node && n < subtree_end_[node]; });
+}
+
 int32_t PagedWorld::link_above(uint32_t node) const {
   for (int32_t n = int32_t(node); n >= 0; n = parent_[size_t(n)]) {
     if (proxy_[size_t(n)].link != kLinkNone) return n;
@@ -432,10 +437,13 @@ bool PagedWorld::stand_in_wanted(std::chrono::steady_clock::time_point deadline)
       }
       continue;
     }
-    // A missing cell is drawn by the finest proxy there is until its page arrives.
+    // A missing cell is drawn by the finest proxy there is until its page arrives; not by one
+    // that would replace finer linked proxies (linking it unlinks them: the whole region would
+    // turn coarse, down to the root's proxy for a whole view). The cell's own proxies are on
+    // their way (request_proxies): meanwhile its pixels wait like those of any missing cell.
     if (!stand_in_missing_) continue;
     const int32_t nearest = nearest_proxy(c);
-    if (nearest >= 0) changed |= link_node(uint32_t(nearest), kLinkMissing);
+    if (nearest >= 0 && !linked_below(uint32_t(nearest))) changed |= link_node(uint32_t(nearest), kLinkMissing);
   }
   if (!detail_done.empty()) {
     // Drawn for detail: not wanted any more; wanted again when the link goes and a ray reaches it.
