@@ -28,17 +28,12 @@ void advise_huge_pages(const void* data, size_t bytes) {
   const uintptr_t hi = (reinterpret_cast<uintptr_t>(data) + bytes) & ~(kHuge - 1);
   if (hi > lo) (void)madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_HUGEPAGE);
 }
-// Per world cell: owner_ here, the caster's marks and per-cell incidence cache.
-constexpr uint64_t kPerCellOverhead = sizeof(uint32_t) + sizeof(uint32_t) + 48;
-
 // Bytes of the world's arrays that a cell's scene and subtree occupy once grafted.
 uint64_t charge_of(const Scene& s, const KdTree& t) {
   uint64_t b = s.prims.size() * sizeof(PrimRef) + s.triangles.size() * sizeof(Triangle) +
                s.triangle_normals.size() * sizeof(std::array<Vec3, 3>) + s.spheres.size() * sizeof(Sphere) +
                s.boxes.size() * sizeof(Box) + s.cones.size() * sizeof(Cone) + s.quadrics.size() * sizeof(Quadric);
-  b += t.nodes().size() * sizeof(KdTree::Node) + t.cells().size() * (sizeof(KdTree::Cell) + kPerCellOverhead) +
-       t.reference_count() * (sizeof(uint32_t) + sizeof(Aabb));
-  return b;
+  return b + tree_bytes(t, kPerCellOverhead);
 }
 
 }  // namespace

@@ -268,6 +268,8 @@ class PagedWorld final : public CellGate {
   double screen_size(uint32_t cell, const Vec3& eye) const;
   // Takes up to `count` proxies whose pages arrived (or failed) off proxy_wanted_.
   std::vector<uint32_t> pick_ready_proxies(size_t count);
+  // Puts `node` back on proxy_wanted_ and asks for its page again (it left the cache).
+  void requeue_proxy(uint32_t node);
   // Decodes node `node`'s proxy page and builds its tree (any thread: reads the model only).
   // False when the page left the cache meanwhile.
   bool decode_proxy(uint32_t node, ProxyDecoded& out) const;
@@ -383,10 +385,11 @@ class PagedWorld final : public CellGate {
   View detail_view_;
   std::vector<double> node_pixels_;      // per top node, pixels_of() for detail_view_
   double pixel_error_ = 0.0;
-  bool stand_in_missing_ = false;
   // Frames may end before every page is in (pegged): the decoder thread decodes alone, the
   // frame's thread only places what it finished (set_detail()).
   bool budgeted_ = false;
+  // Pegged frames draw missing cells by an ancestor's proxy (when the store has proxies).
+  bool stand_in_missing() const { return budgeted_ && !proxy_.empty(); }
 
   std::unique_ptr<std::atomic<uint8_t>[]> wanted_flag_;  // store cell: in wanted_ already
   mutable std::mutex wanted_mutex_;

@@ -116,9 +116,7 @@ void PagedWorld::decoder_loop() {
         s.arena.execute([&] { decoded = decode_proxy(node, p); });
         const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
         if (!decoded) {
-          std::lock_guard<std::mutex> lock(wanted_mutex_);  // its page went: asked for again
-          proxy_wanted_.push_back(node);
-          cache_->request(model_.proxy(node)->page);
+          requeue_proxy(node);  // its page went: asked for again
           continue;
         }
         std::lock_guard<std::mutex> lock(s.mutex);

@@ -11,6 +11,16 @@
 
 namespace frontier {
 
+// Per world cell: owner_ here, the caster's marks and per-cell incidence cache.
+inline constexpr uint64_t kPerCellOverhead = sizeof(uint32_t) + sizeof(uint32_t) + 48;
+
+// Bytes a k-d tree's arrays take, with `per_cell_extra` more per cell (kPerCellOverhead once it
+// is grafted into the world).
+inline uint64_t tree_bytes(const KdTree& t, uint64_t per_cell_extra) {
+  return t.nodes().size() * sizeof(KdTree::Node) + t.cells().size() * (sizeof(KdTree::Cell) + per_cell_extra) +
+         t.reference_count() * (sizeof(uint32_t) + sizeof(Aabb));
+}
+
 // Where a grafted cell's pieces live in the world's arrays (each a contiguous range: a graft
 // appends to every array at once, so ranges of later grafts lie after earlier ones).
 struct PagedWorld::Graft {

@@ -122,6 +122,12 @@ std::vector<uint32_t> PagedWorld::pick_ready_proxies(size_t count) {
   return arrived;
 }
 
+void PagedWorld::requeue_proxy(uint32_t node) {
+  std::lock_guard<std::mutex> lock(wanted_mutex_);
+  proxy_wanted_.push_back(node);
+  cache_->request(model_.proxy(node)->page);
+}
+
 bool PagedWorld::decode_proxy(uint32_t node, ProxyDecoded& out) const {
   out.node = node;
   const uint64_t page = model_.proxy(node)->page;
@@ -154,8 +160,7 @@ bool PagedWorld::install_proxy(ProxyDecoded& p) {
   for (uint32_t i = 0; i < slot.scene.size(); ++i) slot.bounds[i] = slot.scene.prim_bounds(i);
   slot.tree = std::move(p.tree);
   slot.bytes = slot.scene.triangles.size() * (sizeof(Triangle) + sizeof(PrimRef) + sizeof(Aabb)) +
-               slot.scene.triangle_normals.size() * sizeof(std::array<Vec3, 3>) + slot.tree->nodes().size() * sizeof(KdTree::Node) +
-               slot.tree->cells().size() * sizeof(KdTree::Cell) + slot.tree->reference_count() * (sizeof(uint32_t) + sizeof(Aabb));
+               slot.scene.triangle_normals.size() * sizeof(std::array<Vec3, 3>) + tree_bytes(*slot.tree, 0);
   slot.resident = true;
   slot.used = ++proxy_use_;
   proxy_bytes_ += slot.bytes;
@@ -184,13 +189,11 @@ bool PagedWorld::load_proxies(std::chrono::steady_clock::time_point deadline) {
         break;
       }
       ProxyDecoded p;
-      if (!decode_proxy(arrived[k], p)) {
-        std::lock_guard<std::mutex> lock(wanted_mutex_);  // its page went: asked for again
-        proxy_wanted_.push_back(arrived[k]);
-        cache_->request(model_.proxy(arrived[k])->page);
-        continue;
+      if (decode_proxy(arrived[k], p)) {
+        any = install_proxy(p) || any;
+      } else {
+        requeue_proxy(arrived[k]);
       }
-      any = install_proxy(p) || any;
     }
   }
   if (any) drop_proxies_over_budget();
@@ -243,9 +246,7 @@ bool PagedWorld::graft_proxy(uint32_t node) {
     options.root = model_.node_region(node);
     d.tree = KdTree::build(d.scene, options);
   }
-  d.bytes = d.scene.prims.size() * (sizeof(PrimRef) + sizeof(Triangle)) +
-            d.tree.nodes().size() * sizeof(KdTree::Node) + d.tree.cells().size() * (sizeof(KdTree::Cell) + 56) +
-            d.tree.reference_count() * (sizeof(uint32_t) + sizeof(Aabb));
+  d.bytes = d.scene.prims.size() * (sizeof(PrimRef) + sizeof(Triangle)) + tree_bytes(d.tree, kPerCellOverhead);
   if (lru_.bytes() + held_besides_cells() + d.bytes > lru_.budget()) return false;
   const Graft g = append(d, node_ropes(node), kNoOwner);
   slot.graft = static_cast<int32_t>(live_.size());
@@ -441,7 +442,7 @@ bool PagedWorld::stand_in_wanted(std::chrono::steady_clock::time_point deadline)
     // that would replace finer linked proxies (linking it unlinks them: the whole region would
     // turn coarse, down to the root's proxy for a whole view). The cell's own proxies are on
     // their way (request_proxies): meanwhile its pixels wait like those of any missing cell.
-    if (!stand_in_missing_) continue;
+    if (!stand_in_missing()) continue;
     const int32_t nearest = nearest_proxy(c);
     if (nearest >= 0 && !linked_below(uint32_t(nearest))) changed |= link_node(uint32_t(nearest), kLinkMissing);
   }
@@ -459,7 +460,6 @@ void PagedWorld::set_detail(const View& view, double pixel_error, bool stand_in_
   detail_view_ = view;
   set_decode_eye(view.eye);
   pixel_error_ = proxy_.empty() ? 0.0 : pixel_error;
-  stand_in_missing_ = !proxy_.empty() && stand_in_missing;
   budgeted_ = stand_in_missing;
   node_pixels_.assign(proxy_.size(), kInfinity);
   if (pixel_error_ > 0.0) {
@@ -495,7 +495,7 @@ void PagedWorld::note_drawn(const CellMarks& marks) {
 }
 
 void PagedWorld::review_stand_ins() {
-  if (stand_in_missing_ && linked_nodes_.empty() && resident_cells() == 0 && !proxy_.empty() && proxy_[0].resident) {
+  if (stand_in_missing() && linked_nodes_.empty() && resident_cells() == 0 && proxy_[0].resident) {
     // A cold start (nothing of the model in memory yet, e.g. the first frame): the root's proxy
     // draws the whole model at once instead of after a round trip of parked rays; it refines
     // from the next frame on like any linked node.
@@ -518,7 +518,7 @@ void PagedWorld::review_stand_ins() {
       slot.link = slot.last_link = kLinkDetail;  // fine enough from here: stays, whatever is missing below
       continue;
     }
-    if (slot.link == kLinkDetail || !stand_in_missing_) {
+    if (slot.link == kLinkDetail || !stand_in_missing()) {
       unlink_node(n);
       continue;
     }
