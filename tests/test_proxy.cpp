@@ -210,6 +210,36 @@ TEST(ProxyDistance, PointTriangleDistanceMatchesDenseSamplingAndTheBvhBruteForce
   EXPECT_EQ(TriangleBvh({}, {}).distance(Vec3(0.0)), kInfinity);
 }
 
+TEST(ProxyDistance, FarthestSampleWithPruningEqualsTheMaximumOfExactDistances) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<Vec3> positions;
+  std::vector<uint32_t> indices;
+  for (uint32_t t = 0; t < 300; ++t) {
+    const Vec3 c(u(rng) * 5, u(rng) * 5, 0.2 * u(rng));
+    for (int k = 0; k < 3; ++k) {
+      positions.push_back(c + Vec3(u(rng), u(rng), 0.1 * u(rng)));
+      indices.push_back(static_cast<uint32_t>(positions.size() - 1));
+    }
+  }
+  const TriangleBvh bvh(positions, indices);
+  for (int round = 0; round < 20; ++round) {
+    std::vector<Vec3> samples;
+    for (int q = 0; q < 50; ++q) samples.emplace_back(u(rng) * 6, u(rng) * 6, u(rng) * (round % 4 + 1));
+    double exact = 0.0;
+    for (const Vec3& p : samples) exact = std::max(exact, bvh.distance(p));
+    EXPECT_DOUBLE_EQ(farthest_sample(samples, bvh), exact);
+    for (const Vec3& p : samples) {  // the pruned query: exact above the floor, at most it below
+      const double d = bvh.distance(p), floor = 0.5 * (round % 5);
+      if (d > floor) {
+        EXPECT_DOUBLE_EQ(bvh.distance_above(p, floor), d);
+      } else {
+        EXPECT_LE(bvh.distance_above(p, floor), floor);
+      }
+    }
+  }
+}
+
 TEST(Proxy, MergeWeldsAndDropsTrianglesStoredInBothChildren) {
   Scene a, b;
   a.add_triangle({Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0)}, 1, 0);

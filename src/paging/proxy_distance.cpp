@@ -122,8 +122,9 @@ uint32_t TriangleBvh::build(uint32_t first, uint32_t count, std::vector<uint32_t
   return index;
 }
 
-double TriangleBvh::distance(const Vec3& p) const {
+double TriangleBvh::distance_above(const Vec3& p, double floor) const {
   if (nodes_.empty()) return kInfinity;
+  const double floor2 = floor * floor;
   double best2 = kInfinity;
   // Nodes to visit with the squared distance to their box (a lower bound), nearer child on top.
   // Median splits keep the depth at log2(n / 4) + 1, each level pushing at most two entries.
@@ -144,6 +145,7 @@ double TriangleBvh::distance(const Vec3& p) const {
         const Vec3 d = p - closest_on_triangle(p, t.v0, t.v1, t.v2);
         best2 = std::min(best2, glm::dot(d, d));
       }
+      if (best2 <= floor2) break;
       continue;
     }
     const uint32_t lower = entry.node + 1, upper = n.first;
@@ -161,7 +163,7 @@ double TriangleBvh::distance(const Vec3& p) const {
 
 double farthest_sample(std::span<const Vec3> samples, const TriangleBvh& bvh) {
   double farthest = 0.0;
-  for (const Vec3& p : samples) farthest = std::max(farthest, bvh.distance(p));
+  for (const Vec3& p : samples) farthest = std::max(farthest, bvh.distance_above(p, farthest));
   return farthest;
 }
 

@@ -26,7 +26,11 @@ class TriangleBvh {
   TriangleBvh(std::span<const Vec3> positions, std::span<const uint32_t> indices);
 
   // Distance from p to the nearest triangle; +infinity when there are none.
-  double distance(const Vec3& p) const;
+  double distance(const Vec3& p) const { return distance_above(p, 0.0); }
+  // The same when it exceeds `floor`; otherwise some value <= floor (the search stops at the
+  // first triangle within `floor`). farthest_sample's pruning: a sample no farther than the
+  // farthest one so far cannot change the maximum.
+  double distance_above(const Vec3& p, double floor) const;
   size_t triangle_count() const { return triangles_.size(); }
 
  private:
