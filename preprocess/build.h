@@ -55,10 +55,9 @@
 namespace frontier {
 
 // --proxy-triangles' default (README "Proxies": measured on the terrain and the building).
-// 0 (no proxies) until frontier-view draws them: they cost build time (README "Proxies").
-inline constexpr uint32_t kDefaultProxyTriangles = 0;
-// What a build with proxies should ask for (measured: README "Proxies").
-inline constexpr uint32_t kSuggestedProxyTriangles = 128;
+// On: frontier-view draws far and missing subtrees with them (0: none, a smaller, faster build
+// whose walks show nothing where cells are not yet in).
+inline constexpr uint32_t kDefaultProxyTriangles = 128;
 
 struct BuildOptions {
   std::vector<std::string> inputs;
@@ -91,7 +90,9 @@ struct BuildOptions {
   bool reparse_binary_ply = true;
   // Triangles a proxy page of an interior node aims at (src/paging/proxy.h; at most twice as many
   // where meshoptimizer's locked borders stop it, fewer for a subtree with fewer); 0: no proxies.
-  uint32_t proxy_triangles = kDefaultProxyTriangles;
+  // 0 here (none: the library's callers, tests and benchmarks of cells alone, opt in);
+  // frontier-build's --proxy-triangles defaults to kDefaultProxyTriangles.
+  uint32_t proxy_triangles = 0;
   // Store each cell page's in-cell tree (src/paging/cell_tree.h): the tree frontier-view builds
   // when it pages the cell in with its default options, so page-in does not run the SAH builder.
   bool cell_trees = true;

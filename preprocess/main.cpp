@@ -58,8 +58,8 @@ int main(int argc, char** argv) {
   app.add_option("--proxy-triangles", options.proxy_triangles,
                  "triangles of the proxy page every interior node of the store's top tree gets: a coarse "
                  "stand-in for its whole subtree (meshoptimizer, borders locked; at most twice this where "
-                 "borders stop it) with a measured object-space error bound; 0: no proxies (the default until "
-                 "frontier-view draws them; 128 is the measured choice)")
+                 "borders stop it) with a measured object-space error bound, for frontier-view to draw far and missing "
+                 "subtrees; 0: no proxies (a faster build, but a walk shows nothing where cells are not yet in)")
       ->default_val(frontier::kDefaultProxyTriangles);
   app.add_option("--threads", options.threads, "threads that build and encode parts (0: all cores); reading and "
                  "partitioning use a reader thread besides")->default_val(0);

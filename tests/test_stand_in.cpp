@@ -232,6 +232,53 @@ TEST(WalkthroughStandIn, RopesIntoALinkedRegionArriveWhereTheRootDescentArrives)
   EXPECT_GT(checked, 0u);
 }
 
+// A missing cell whose nearest resident proxy has finer proxies linked elsewhere below it is drawn
+// by that proxy only over the part of its region on the cell's path that holds no link (a
+// borrowed stand-in), not left empty and not by unlinking the finer ones. Checked on every frame
+// of walks pegged at a few milliseconds (whether a page beats its stand-in is timing; over 48
+// frames some do not): each borrowed link's donor is an ancestor, no linked node lies in a
+// borrowed link's subtree or above it, and borrowed links happen at all.
+TEST(WalkthroughStandIn, MissingCellsBelowFinerLinksBorrowTheirAncestorsProxy) {
+  size_t borrowed = 0, frames = 0;
+  for (const double ms : {1.0, 2.0, 3.0, 5.0}) {  // short frames: pages are still on their way
+    WalkOptions o = options(1.0);
+    o.width = 160;
+    o.height = 120;
+    o.budget.ms = ms;
+    auto walk = Walkthrough::open(terrain().proxies, o);
+    ASSERT_TRUE(walk.is_ok());
+    const StoreModel& model = (*walk)->model();
+    const auto& nodes = model.nodes();
+    // Preorder: node n's subtree is [n, end[n]).
+    std::vector<uint32_t> end(nodes.size());
+    for (size_t n = nodes.size(); n-- > 0;) end[n] = nodes[n].is_leaf() ? uint32_t(n + 1) : end[nodes[n].child];
+    for (int round = 0; round < 3; ++round) {
+      for (const Camera& cam : orbit()) {
+        const FrameReport r = (*walk)->frame(cam);
+        SCOPED_TRACE(r.to_json().dump());
+        ++frames;
+        const PagedWorld& world = (*walk)->world();
+        const std::vector<uint32_t>& linked = world.linked_nodes();
+        for (const uint32_t n : linked) {
+          const int32_t donor = world.borrowed_from(n);
+          if (donor < 0) continue;
+          ++borrowed;
+          EXPECT_LT(uint32_t(donor), n);
+          EXPECT_LT(n, end[size_t(donor)]) << "donor " << donor << " is not an ancestor of " << n;
+          EXPECT_FALSE(nodes[n].is_leaf());
+          for (const uint32_t m : linked) {
+            if (m == n) continue;
+            EXPECT_FALSE(m > n && m < end[n]) << "node " << m << " linked inside borrowed link " << n;
+            EXPECT_FALSE(n > m && n < end[m]) << "borrowed link " << n << " inside linked node " << m;
+          }
+        }
+      }
+    }
+  }
+  EXPECT_GT(frames, 0u);
+  EXPECT_GT(borrowed, 0u) << "no frame borrowed an ancestor's proxy: the test checked nothing it was meant to";
+}
+
 // Budgeted frames (300 ms, more than a 64x48 frame needs: each ends when its image is complete,
 // pages or not) show geometry wherever the exact frame has it: missing cells are
 // drawn by their ancestors' proxies, never by nothing; whatever stood in is counted.

@@ -22,7 +22,8 @@ void add_scene_options(CLI::App& app, ViewerOptions& o) {
   peg_time->excludes(peg_samples);
   app.add_option("--min-sampled", o.min_sampled,
                  "store, with a pegged frame time: a moving frame goes on past its time (at most one more frame "
-                 "time) until this share of its pixels is sampled; 0 = pure frame-time pegging (default 0.5)")
+                 "time, from the peg or from when it was reached if later) until this share of its pixels is "
+                 "sampled; 0 = pure frame-time pegging (default 0.5)")
       ->check(CLI::Range(0.0, 1.0));
 }
 

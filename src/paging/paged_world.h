@@ -205,6 +205,8 @@ class PagedWorld final : public CellGate {
   bool stood_in(uint32_t c) const { return !proxy_.empty() && link_above(leaf_node_[c]) >= 0; }
   // Top nodes drawn by their proxies now.
   const std::vector<uint32_t>& linked_nodes() const { return linked_nodes_; }
+  // The ancestor whose proxy linked top node `node` draws (its own not being in; -1: its own).
+  int32_t borrowed_from(uint32_t node) const;
   // Stand-ins replaced by their pages (or by a finer proxy) so far: an image that showed
   // stand-ins is out of date once this grows.
   uint64_t stand_ins_replaced() const { return stand_ins_replaced_; }
@@ -309,9 +311,18 @@ class PagedWorld final : public CellGate {
   bool stand_in_wanted(std::chrono::steady_clock::time_point deadline);
   static constexpr uint8_t kLinkNone = 0, kLinkDetail = 1, kLinkMissing = 2;
   // Links top node `node` to its proxy's subtree (grafting it once) for reason `why`, unlinking
-  // linked nodes below it. False when nothing changed (already linked, or no room).
-  bool link_node(uint32_t node, uint8_t why);
+  // linked nodes below it. With `from` (a resident ancestor), to a subtree over that ancestor's
+  // proxy clipped to the node's region instead (a borrowed stand-in, for a node whose own proxy
+  // is not in). False when nothing changed (already linked, or no room).
+  bool link_node(uint32_t node, uint8_t why, int32_t from = -1);
+  // Restores the node; a borrowed stand-in's subtree goes with it.
   void unlink_node(uint32_t node);
+  // The highest interior node on the path from below top node `above` down to `cell` with no
+  // linked node in its subtree (-1: none): where `above`'s proxy can draw `cell` without
+  // replacing finer linked proxies.
+  int32_t free_node_on_path(uint32_t above, uint32_t cell) const;
+  // The deepest resident proxy strictly above top node `node` (-1: none).
+  int32_t resident_above(uint32_t node) const;
   // Sets the tree's cover of the nodes below `node` (the outermost linked ancestor of each), so
   // that a rope into a linked node's region goes through the link (after node links or unlinks).
   void cover_subtree(uint32_t node);
@@ -332,8 +343,9 @@ class PagedWorld final : public CellGate {
   static constexpr uint32_t kRefineCells = 8;
   // Records which linked nodes the image's rays reached (end_frame()).
   void note_drawn(const CellMarks& marks);
-  // Grafts node `node`'s proxy as a subtree over its region (once); false when it does not fit.
-  bool graft_proxy(uint32_t node);
+  // Grafts node `node`'s proxy (or ancestor `from`'s) as a subtree over its region (once); false
+  // when it does not fit.
+  bool graft_proxy(uint32_t node, int32_t from = -1);
   std::array<int32_t, 6> node_ropes(uint32_t node) const;
   // Appends the store cells under top node `node` whose regions overlap `box`.
   void cells_under(uint32_t node, const Aabb& box, std::vector<uint32_t>& out) const;

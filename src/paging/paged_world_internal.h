@@ -6,6 +6,7 @@
 #include <tbb/task_arena.h>
 
 #include <condition_variable>
+#include <memory>
 #include <optional>
 #include <thread>
 
@@ -58,22 +59,26 @@ struct PagedWorld::ProxyDecoded {
 };
 
 // A top node's proxy as the world holds it: its triangles (source and material kept) and their
-// bounds, so a cell's stand-in takes the ones overlapping its region without testing the rest
-// twice.
+// tree, and whether the node is linked to a subtree over them (or over an ancestor's).
+// One per top node, so it stays small (a 1 B-triangle store has millions of top nodes); what a
+// resident proxy holds is behind `data`.
 struct PagedWorld::ProxySlot {
+  struct Data {
+    Scene scene;
+    KdTree tree;  // its triangles' tree over the node's region (built by decode_proxy)
+  };
+  std::unique_ptr<Data> data;  // while resident
+  uint64_t bytes = 0;
+  uint64_t used = 0;         // proxy_use_ stamp of the last stand-in made from it
+  KdTree::Node saved;        // the top node as the store has it, while linked
+  int32_t graft = -1;        // its subtree's index in live_ once grafted (-1: none)
+  int32_t borrowed = -1;     // the graft draws this ancestor's proxy (clipped to the node's region)
+  uint8_t link = 0;          // kLinkNone, or why the top node is a link to that subtree now
+  uint8_t last_link = 0;     // why it was linked last (the report, after it gave way)
   bool requested = false;
   bool resident = false;
   bool failed = false;
-  Scene scene;
-  std::vector<Aabb> bounds;  // per triangle
-  uint64_t bytes = 0;
-  uint64_t used = 0;         // proxy_use_ stamp of the last stand-in made from it
-  int32_t graft = -1;        // its subtree's index in live_ once grafted (-1: none)
-  uint8_t link = 0;          // kLinkNone, or why the top node is a link to that subtree now
-  uint8_t last_link = 0;     // why it was linked last (the report, after it gave way)
   bool drawn = false;        // linked, and its subtree was reached by the last image's rays
-  KdTree::Node saved;        // the top node as the store has it, while linked
-  std::optional<KdTree> tree;  // its triangles' tree over the node's region, when decoded ahead
 };
 
 // The decoder thread's shared state (paged_world_decoder.cpp). Lock order: wanted_mutex_, then

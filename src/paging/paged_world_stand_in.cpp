@@ -84,9 +84,29 @@ int32_t PagedWorld::detail_node(uint32_t cell) const {
   return best;
 }
 
-int32_t PagedWorld::nearest_proxy(uint32_t cell) const {
-  for (int32_t n = parent_[leaf_node_[cell]]; n >= 0; n = parent_[size_t(n)]) {
+int32_t PagedWorld::borrowed_from(uint32_t node) const {
+  return node < proxy_.size() ? proxy_[node].borrowed : -1;
+}
+
+int32_t PagedWorld::nearest_proxy(uint32_t cell) const { return resident_above(leaf_node_[cell]); }
+
+int32_t PagedWorld::resident_above(uint32_t node) const {
+  for (int32_t n = parent_[node]; n >= 0; n = parent_[size_t(n)]) {
     if (proxy_[size_t(n)].resident) return n;
+  }
+  return -1;
+}
+
+int32_t PagedWorld::free_node_on_path(uint32_t above, uint32_t cell) const {
+  std::vector<uint32_t> path;  // from the cell's leaf up to below `above`
+  for (int32_t n = int32_t(leaf_node_[cell]); n >= 0 && uint32_t(n) != above; n = parent_[size_t(n)]) {
+    path.push_back(uint32_t(n));
+  }
+  const auto& nodes = model_.nodes();
+  for (size_t k = path.size(); k-- > 0;) {
+    const uint32_t n = path[k];
+    if (nodes[n].is_leaf()) break;  // a leaf is the cell's own page's place
+    if (!linked_below(n)) return int32_t(n);
   }
   return -1;
 }
@@ -155,12 +175,24 @@ bool PagedWorld::install_proxy(ProxyDecoded& p) {
     if (!p.page_failed) ++counters_.page_errors;
     return false;
   }
-  slot.scene = std::move(p.scene);
-  slot.bounds.resize(slot.scene.size());
-  for (uint32_t i = 0; i < slot.scene.size(); ++i) slot.bounds[i] = slot.scene.prim_bounds(i);
-  slot.tree = std::move(p.tree);
-  slot.bytes = slot.scene.triangles.size() * (sizeof(Triangle) + sizeof(PrimRef) + sizeof(Aabb)) +
-               slot.scene.triangle_normals.size() * sizeof(std::array<Vec3, 3>) + tree_bytes(*slot.tree, 0);
+  slot.data = std::make_unique<ProxySlot::Data>(ProxySlot::Data{std::move(p.scene), std::move(p.tree)});
+  const Scene& scene = slot.data->scene;
+  const uint64_t own = scene.triangles.size() * (sizeof(Triangle) + sizeof(PrimRef)) +
+                       scene.triangle_normals.size() * sizeof(std::array<Vec3, 3>) +
+                       tree_bytes(slot.data->tree, 0);
+  if (slot.borrowed >= 0) {
+    // Linked to an ancestor's proxy meanwhile: its own, finer one takes over.
+    const bool linked = slot.link != kLinkNone;
+    release_proxy_graft(p.node);
+    slot.bytes += own;
+    slot.resident = true;
+    proxy_bytes_ += own;
+    if (linked) link_node(p.node, kLinkMissing);
+    slot.used = ++proxy_use_;
+    ++counters_.proxies_loaded;
+    return true;
+  }
+  slot.bytes = own;
   slot.resident = true;
   slot.used = ++proxy_use_;
   proxy_bytes_ += slot.bytes;
@@ -232,16 +264,19 @@ std::array<int32_t, 6> PagedWorld::node_ropes(uint32_t node) const {
   return ropes;
 }
 
-bool PagedWorld::graft_proxy(uint32_t node) {
+bool PagedWorld::graft_proxy(uint32_t node, int32_t from) {
   ProxySlot& slot = proxy_[node];
   if (slot.graft >= 0) return true;
+  const uint32_t source = from >= 0 ? uint32_t(from) : node;
+  const ProxySlot::Data& data = *proxy_[source].data;
   Decoded d;
   d.cell = node;
   d.stand_in = int32_t(node);
-  d.scene = slot.scene;
-  if (slot.tree) {
-    d.tree = *slot.tree;  // built when it was decoded (kept: the graft may be released and made again)
+  d.scene = data.scene;
+  if (source == node) {
+    d.tree = data.tree;  // built when it was decoded (kept: the graft may be released and made again)
   } else {
+    // An ancestor's triangles over this node's region (the builder clips them to it).
     KdBuildOptions options = cell_build_;
     options.root = model_.node_region(node);
     d.tree = KdTree::build(d.scene, options);
@@ -253,6 +288,7 @@ bool PagedWorld::graft_proxy(uint32_t node) {
   live_.push_back(g);
   slot.bytes += g.bytes;
   proxy_bytes_ += g.bytes;
+  if (source != node) slot.borrowed = int32_t(source);
   return true;
 }
 
@@ -268,13 +304,13 @@ int32_t PagedWorld::link_above(uint32_t node) const {
   return -1;
 }
 
-bool PagedWorld::link_node(uint32_t node, uint8_t why) {
+bool PagedWorld::link_node(uint32_t node, uint8_t why, int32_t from) {
   ProxySlot& slot = proxy_[node];
   if (slot.link != kLinkNone) {
     slot.link = slot.last_link = why;
     return false;
   }
-  if (!graft_proxy(node)) return false;
+  if (!graft_proxy(node, from)) return false;
   // What was linked below is inside the node's region: the node's proxy draws it now.
   for (size_t k = 0; k < linked_nodes_.size();) {
     const uint32_t n = linked_nodes_[k];
@@ -319,6 +355,15 @@ void PagedWorld::unlink_node(uint32_t node) {
   std::erase(linked_nodes_, node);
   cover_subtree(node);
   ++stand_ins_replaced_;
+  if (slot.borrowed >= 0) {
+    // A borrowed subtree is made for one link: it goes with it.
+    const uint64_t bytes = live_[size_t(slot.graft)].bytes;
+    remove_graft(slot.graft);
+    slot.graft = -1;
+    slot.borrowed = -1;
+    slot.bytes -= bytes;
+    proxy_bytes_ -= bytes;
+  }
 }
 
 bool PagedWorld::complete_below(uint32_t node) const {
@@ -361,6 +406,7 @@ void PagedWorld::refine(uint32_t node) {
     proxy_wanted_.push_back(x);
     cache_->request(model_.proxy(x)->page);
   };
+  if (proxy_[node].borrowed >= 0) request(node);  // drawn by an ancestor's: its own first
   for (const uint32_t x : {node + 1, nodes[node].child}) {
     request(x);
     if (!nodes[x].is_leaf()) {
@@ -404,6 +450,10 @@ void PagedWorld::release_proxy_grafts() {
 
 void PagedWorld::drop_proxy(uint32_t node) {
   release_proxy_graft(node);
+  const std::vector<uint32_t> linked = linked_nodes_;
+  for (const uint32_t n : linked) {
+    if (proxy_[n].borrowed == int32_t(node)) unlink_node(n);  // drew this proxy's triangles
+  }
   proxy_bytes_ -= proxy_[node].bytes;
   proxy_[node] = ProxySlot();
 }
@@ -442,9 +492,17 @@ bool PagedWorld::stand_in_wanted(std::chrono::steady_clock::time_point deadline)
     // that would replace finer linked proxies (linking it unlinks them: the whole region would
     // turn coarse, down to the root's proxy for a whole view). The cell's own proxies are on
     // their way (request_proxies): meanwhile its pixels wait like those of any missing cell.
+    // Where finer proxies are linked below it, the nearest proxy draws only the part of its
+    // region on the cell's path that holds none (a borrowed stand-in): the cell is not left
+    // empty, and the finer proxies stay.
     if (!stand_in_missing()) continue;
     const int32_t nearest = nearest_proxy(c);
-    if (nearest >= 0 && !linked_below(uint32_t(nearest))) changed |= link_node(uint32_t(nearest), kLinkMissing);
+    if (nearest < 0) continue;
+    if (!linked_below(uint32_t(nearest))) {
+      changed |= link_node(uint32_t(nearest), kLinkMissing);
+    } else if (const int32_t free = free_node_on_path(uint32_t(nearest), c); free >= 0) {
+      changed |= link_node(uint32_t(free), kLinkMissing, nearest);
+    }
   }
   if (!detail_done.empty()) {
     // Drawn for detail: not wanted any more; wanted again when the link goes and a ray reaches it.
@@ -521,6 +579,15 @@ void PagedWorld::review_stand_ins() {
     if (slot.link == kLinkDetail || !stand_in_missing()) {
       unlink_node(n);
       continue;
+    }
+    if (slot.borrowed >= 0) {
+      // A finer ancestor's proxy came in since: it draws the node from now on.
+      const int32_t donor = resident_above(n);
+      if (donor >= 0 && donor != slot.borrowed) {
+        unlink_node(n);
+        if (!link_node(n, kLinkMissing, donor)) continue;  // no room: its cells wait
+        proxy_[n].drawn = true;
+      }
     }
     refine(n);
   }

@@ -420,8 +420,14 @@ bool Walkthrough::out_of_time(FramePlan& plan) const {
   if (Clock::now() < plan.deadline) return false;
   if (plan.overtime || image_samples_ >= plan.floor_samples) return true;
   plan.overtime = true;
-  plan.deadline = plan.start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double, std::milli>(
-                                   (1.0 + kFloorMaxOvertime) * options_.budget.ms));
+  // kFloorMaxOvertime frame times past the pegged end, and never less than that from now: a
+  // frame whose start was held up (paging, a descheduled thread) still gets its floor's time
+  // instead of ending with no sample (a black frame).
+  const auto ms = [](double x) {
+    return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double, std::milli>(x));
+  };
+  plan.deadline = std::max(plan.start + ms((1.0 + kFloorMaxOvertime) * options_.budget.ms),
+                           Clock::now() + ms(kFloorMaxOvertime * options_.budget.ms));
   return false;
 }
 

@@ -65,8 +65,9 @@ struct WalkOptions {
   bool shadows = true;         // deferred shadows when the camera stops (scene must declare lights)
   // A quality floor under the frame-time peg: a moving frame that reaches its time with fewer
   // than this share of its pixels sampled goes on until it has them, for at most
-  // kFloorMaxOvertime more frame times (paging, a burst of new cells or a descheduled worker
-  // would otherwise show a frame that is mostly reconstruction). 0: pure frame-time pegging
+  // kFloorMaxOvertime more frame times, counted from the peg or from the moment it was reached,
+  // whichever is later (paging, a burst of new cells or a descheduled worker would otherwise
+  // show a frame that is mostly reconstruction, or none). 0: pure frame-time pegging
   // (paper §5.5). The report's floor_ms says how long a frame ran past its peg for it.
   double min_sampled = 0.5;
   // How a paged-in store cell is refined (page-in time is frame time). Measured on the 100 M
