@@ -352,6 +352,8 @@ class PagedWorld final : public CellGate {
   void drop_proxy(uint32_t node);
   // Unlinks the node and removes its proxy's subtree (the decoded proxy stays).
   void release_proxy_graft(uint32_t node);
+  // Removes the node's grafted subtree (its own proxy's or a borrowed one) and its bytes.
+  void remove_proxy_graft(uint32_t node);
   void release_proxy_grafts();
   void review_stand_ins();
 

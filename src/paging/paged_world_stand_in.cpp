@@ -180,22 +180,15 @@ bool PagedWorld::install_proxy(ProxyDecoded& p) {
   const uint64_t own = scene.triangles.size() * (sizeof(Triangle) + sizeof(PrimRef)) +
                        scene.triangle_normals.size() * sizeof(std::array<Vec3, 3>) +
                        tree_bytes(slot.data->tree, 0);
-  if (slot.borrowed >= 0) {
-    // Linked to an ancestor's proxy meanwhile: its own, finer one takes over.
-    const bool linked = slot.link != kLinkNone;
-    release_proxy_graft(p.node);
-    slot.bytes += own;
-    slot.resident = true;
-    proxy_bytes_ += own;
-    if (linked) link_node(p.node, kLinkMissing);
-    slot.used = ++proxy_use_;
-    ++counters_.proxies_loaded;
-    return true;
-  }
-  slot.bytes = own;
+  // Linked to an ancestor's proxy meanwhile (a borrowed subtree exists only while linked): its
+  // own, finer one takes over.
+  const bool relink = slot.borrowed >= 0;
+  if (relink) release_proxy_graft(p.node);
+  slot.bytes += own;
   slot.resident = true;
   slot.used = ++proxy_use_;
-  proxy_bytes_ += slot.bytes;
+  proxy_bytes_ += own;
+  if (relink) link_node(p.node, kLinkMissing);
   ++counters_.proxies_loaded;
   return true;
 }
@@ -356,14 +349,18 @@ void PagedWorld::unlink_node(uint32_t node) {
   cover_subtree(node);
   ++stand_ins_replaced_;
   if (slot.borrowed >= 0) {
-    // A borrowed subtree is made for one link: it goes with it.
-    const uint64_t bytes = live_[size_t(slot.graft)].bytes;
-    remove_graft(slot.graft);
-    slot.graft = -1;
+    remove_proxy_graft(node);  // a borrowed subtree is made for one link: it goes with it
     slot.borrowed = -1;
-    slot.bytes -= bytes;
-    proxy_bytes_ -= bytes;
   }
+}
+
+void PagedWorld::remove_proxy_graft(uint32_t node) {
+  ProxySlot& slot = proxy_[node];
+  const uint64_t bytes = live_[size_t(slot.graft)].bytes;
+  remove_graft(slot.graft);
+  slot.graft = -1;
+  slot.bytes -= bytes;
+  proxy_bytes_ -= bytes;
 }
 
 bool PagedWorld::complete_below(uint32_t node) const {
@@ -432,14 +429,8 @@ void PagedWorld::refine(uint32_t node) {
 }
 
 void PagedWorld::release_proxy_graft(uint32_t node) {
-  ProxySlot& slot = proxy_[node];
   unlink_node(node);
-  if (slot.graft < 0) return;
-  const uint64_t bytes = live_[size_t(slot.graft)].bytes;
-  remove_graft(slot.graft);
-  slot.graft = -1;
-  slot.bytes -= bytes;
-  proxy_bytes_ -= bytes;
+  if (proxy_[node].graft >= 0) remove_proxy_graft(node);
 }
 
 void PagedWorld::release_proxy_grafts() {
@@ -490,11 +481,9 @@ bool PagedWorld::stand_in_wanted(std::chrono::steady_clock::time_point deadline)
     }
     // A missing cell is drawn by the finest proxy there is until its page arrives; not by one
     // that would replace finer linked proxies (linking it unlinks them: the whole region would
-    // turn coarse, down to the root's proxy for a whole view). The cell's own proxies are on
-    // their way (request_proxies): meanwhile its pixels wait like those of any missing cell.
-    // Where finer proxies are linked below it, the nearest proxy draws only the part of its
-    // region on the cell's path that holds none (a borrowed stand-in): the cell is not left
-    // empty, and the finer proxies stay.
+    // turn coarse, down to the root's proxy for a whole view). There, the nearest proxy draws
+    // only the part of its region on the cell's path that holds none (a borrowed stand-in), while
+    // the cell's own proxies come (request_proxies).
     if (!stand_in_missing()) continue;
     const int32_t nearest = nearest_proxy(c);
     if (nearest < 0) continue;
