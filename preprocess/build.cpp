@@ -209,6 +209,7 @@ TreePage with_cell_tree(const EncodedCell& e, const Aabb& region, KdBuildOptions
 struct PendingProxyPage {
   std::optional<Result<EncodedCell>> page;  // none: a leaf, or a subtree without triangles
   StoreProxy record;
+  bool shell = false;
   bool sloppy = false;
 };
 
@@ -618,7 +619,7 @@ class StoreBuilder {
     const auto upper = static_cast<uint32_t>(nodes_.size());
     if (Status s = emit(nodes, p.upper, parts, depth + 1, progress); !s) return s;
     nodes_[index] = {p.split, static_cast<uint32_t>(p.axis), upper};
-    if (options_.proxy_triangles > 0) return merge_pending(static_cast<uint32_t>(index));
+    if (options_.proxy_triangles > 0) return merge_pending(static_cast<uint32_t>(index), p.region);
     return Status::ok();
   }
 
@@ -869,7 +870,7 @@ class StoreBuilder {
     std::vector<PendingProxyPage> pages(tree.nodes().size());
     const CellCodecOptions codec = codec_options();
     ProxyMesh root;
-    arena_->execute([&] { root = part_proxy(scene, tree, 0, pages, codec); });
+    arena_->execute([&] { root = part_proxy(scene, tree, 0, tree.bounds(), pages, codec); });
     for (size_t i = 0; i < pages.size(); ++i) {
       if (Status s = write_proxy(node_base + static_cast<uint32_t>(i), pages[i]); !s) return s;
     }
@@ -880,8 +881,8 @@ class StoreBuilder {
 
   // The mesh standing for local node `node` of a part's tree: a leaf's input, or an interior
   // node's proxy (whose page goes to pages[node]).
-  ProxyMesh part_proxy(const Scene& scene, const KdTree& tree, uint32_t node, std::vector<PendingProxyPage>& pages,
-                       const CellCodecOptions& codec) const {
+  ProxyMesh part_proxy(const Scene& scene, const KdTree& tree, uint32_t node, const Aabb& region,
+                       std::vector<PendingProxyPage>& pages, const CellCodecOptions& codec) const {
     const KdTree::Node& n = tree.nodes()[node];
     if (n.is_leaf()) {
       const KdTree::Cell& cell = tree.cells()[n.child];
@@ -891,19 +892,24 @@ class StoreBuilder {
       pages[node].record.subtree_triangles = mesh.subtree_triangles;
       return mesh;
     }
+    Aabb lower_region = region, upper_region = region;
+    lower_region.hi[n.axis_or_leaf] = n.split;
+    upper_region.lo[n.axis_or_leaf] = n.split;
     ProxyMesh lower, upper;
-    tbb::parallel_invoke([&] { lower = part_proxy(scene, tree, node + 1, pages, codec); },
-                         [&] { upper = part_proxy(scene, tree, n.child, pages, codec); });
-    return make_proxy(lower, upper, pages[node], codec);
+    tbb::parallel_invoke([&] { lower = part_proxy(scene, tree, node + 1, lower_region, pages, codec); },
+                         [&] { upper = part_proxy(scene, tree, n.child, upper_region, pages, codec); });
+    return make_proxy(lower, upper, region, pages[node], codec);
   }
 
   // Merges two children's meshes into their parent's proxy, encoded into `out`.
-  ProxyMesh make_proxy(ProxyMesh& lower, ProxyMesh& upper, PendingProxyPage& out, const CellCodecOptions& codec) const {
+  ProxyMesh make_proxy(ProxyMesh& lower, ProxyMesh& upper, const Aabb& region, PendingProxyPage& out,
+                       const CellCodecOptions& codec) const {
     ProxyMesh merged = merge_proxies(lower, upper);
     lower = ProxyMesh{};
     upper = ProxyMesh{};
     ProxySimplifyStats stats;
-    ProxyMesh proxy = simplify_proxy(merged, proxy_options_, &stats);
+    ProxyMesh proxy = simplify_proxy(merged, proxy_options_, &stats, &region);
+    out.shell = stats.shell;
     out.sloppy = stats.sloppy;
     out.record.error = proxy.error;
     out.record.subtree_triangles = proxy.subtree_triangles;
@@ -926,6 +932,7 @@ class StoreBuilder {
     if (record.triangles == 0) record.page = StoreProxy::kNoPage;  // everything dropped
     report_.proxy_bytes += e->payload.size() + store::kBlockTrailerSize;
     report_.proxy_triangles += record.triangles;
+    report_.proxy_shells += pending.shell ? 1 : 0;
     report_.proxy_sloppy += pending.sloppy ? 1 : 0;
     ++report_.proxy_pages;
     pending.page.reset();
@@ -933,7 +940,7 @@ class StoreBuilder {
   }
 
   // A plan node above the parts whose children are done: its proxy from the two pending meshes.
-  Status merge_pending(uint32_t node) {
+  Status merge_pending(uint32_t node, const Aabb& region) {
     const auto t = std::chrono::steady_clock::now();
     if (pending_.size() < 2) return Status::invalid_argument("build: proxy stack underflow (a bug)");
     ProxyMesh upper = std::move(pending_.back());
@@ -942,7 +949,7 @@ class StoreBuilder {
     pending_.pop_back();
     PendingProxyPage page;
     ProxyMesh proxy;
-    arena_->execute([&] { proxy = make_proxy(lower, upper, page, codec_options()); });
+    arena_->execute([&] { proxy = make_proxy(lower, upper, region, page, codec_options()); });
     if (Status s = write_proxy(node, page); !s) return s;
     pending_.push_back(std::move(proxy));
     report_.proxy_seconds += seconds_since(t);

@@ -125,7 +125,8 @@ struct BuildReport {
   uint64_t proxy_pages = 0;             // proxies of interior nodes (--proxy-triangles > 0)
   uint64_t proxy_bytes = 0;             // their pages, trailers included
   uint64_t proxy_triangles = 0;         // in all proxy pages
-  uint64_t proxy_sloppy = 0;            // proxies meshopt_simplifySloppy made (locked borders could not)
+  uint64_t proxy_shells = 0;            // proxies that are voxel shells (unlocked simplification could not)
+  uint64_t proxy_sloppy = 0;            // proxies meshopt_simplifySloppy made (no shell either)
   double proxy_root_error = 0.0;        // the root's error bound (0: the root is a leaf)
   double proxy_seconds = 0.0;           // merging, simplifying, measuring and encoding proxies
   std::vector<std::string> warnings;    // what the readers read past (also printed on stderr)

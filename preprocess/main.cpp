@@ -139,10 +139,10 @@ int main(int argc, char** argv) {
     if (r.proxy_pages > 0) {
       std::fprintf(stderr, "%s",
                    fmt::format("  proxies: {} pages, {} triangles, {:.1f} MB ({:.2f} bytes/triangle of the model), "
-                               "{} sloppy, root error {:.4g}; {:.1f} s\n",
+                               "{} voxel shells, {} sloppy, root error {:.4g}; {:.1f} s\n",
                                r.proxy_pages, r.proxy_triangles, static_cast<double>(r.proxy_bytes) / 1e6,
                                static_cast<double>(r.proxy_bytes) / static_cast<double>(std::max<uint64_t>(r.triangles, 1)),
-                               r.proxy_sloppy, r.proxy_root_error, r.proxy_seconds)
+                               r.proxy_shells, r.proxy_sloppy, r.proxy_root_error, r.proxy_seconds)
                        .c_str());
     }
     if (!r.portals_sidecar.empty()) {

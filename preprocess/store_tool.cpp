@@ -7,8 +7,12 @@
 //                assembled over its cell, every collision brick decoded, every proxy page decoded
 //                and checked against its record, every page owned by exactly one cell, brick or
 //                proxy; exit 1 naming the first bad part
+//   proxy FILE NODE -o OUT.ply
+//                node NODE's proxy (its stand-in triangles, as the viewer draws them) as a PLY mesh,
+//                to look at; prints its error bound and triangle count
 #include "src/paging/collision_grid.h"
 #include "src/core/progress.h"
+#include "src/io/ply_writer.h"
 #include "src/paging/store_model.h"
 #include "store/page_file.h"
 #include "store/store_file.h"
@@ -228,6 +232,44 @@ int verify(const std::string& path, bool quiet) {
   return 0;
 }
 
+int export_proxy(const std::string& path, uint32_t node, const std::string& out) {
+  frontier::store::PosixFileSystem fs;
+  auto reader = frontier::store::StoreReader::open(fs, path);
+  if (!reader) return fail(reader.status());
+  auto opened = StoreModel::open(std::move(*reader));
+  if (!opened) return fail(opened.status());
+  const StoreModel& model = **opened;
+  if (node >= model.nodes().size()) {
+    std::fprintf(stderr, "frontier-store: %s: node %u: the top tree has %zu nodes\n", path.c_str(), node,
+                 model.nodes().size());
+    return 2;
+  }
+  const frontier::StoreProxy* proxy = model.proxy(node);
+  if (proxy == nullptr) {
+    std::fprintf(stderr, "frontier-store: %s: node %u has no proxy page\n", path.c_str(), node);
+    return 2;
+  }
+  frontier::Scene scene;
+  if (frontier::Status s = model.read_proxy(node, scene); !s) return fail(s);
+  frontier::MeshPiece piece;
+  for (const frontier::Triangle& t : scene.triangles) {
+    for (const frontier::Vec3& v : {t.v0, t.v1, t.v2}) {
+      piece.indices.push_back(static_cast<uint32_t>(piece.vertex_count()));
+      piece.positions.insert(piece.positions.end(),
+                             {static_cast<float>(v.x), static_cast<float>(v.y), static_cast<float>(v.z)});
+    }
+  }
+  auto writer = frontier::PlyWriter::create(out, {}, piece.vertex_count(), piece.triangle_count(),
+                                            {fmt::format("proxy of node {} of {}, error bound {}", node, path, proxy->error)});
+  if (!writer) return fail(writer.status());
+  if (frontier::Status s = (*writer)->add(piece); !s) return fail(s);
+  if (frontier::Status s = (*writer)->finish(); !s) return fail(s);
+  std::printf("node %u: %zu triangles, error bound %.6g, %llu triangles below it -> %s\n", node,
+              scene.triangles.size(), proxy->error, static_cast<unsigned long long>(proxy->subtree_triangles),
+              out.c_str());
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -248,6 +290,12 @@ int main(int argc, char** argv) {
       "naming the first bad one");
   verify_cmd->add_option("file", path, "store file")->required();
   verify_cmd->add_flag("-q,--quiet", quiet, "print nothing when the store is good");
+  uint32_t node = 0;
+  std::string out;
+  auto* proxy_cmd = app.add_subcommand("proxy", "write one node's proxy (the triangles standing in for its subtree) as a PLY mesh");
+  proxy_cmd->add_option("file", path, "store file")->required();
+  proxy_cmd->add_option("node", node, "top-tree node (0 = the root; preorder, as in the store's tree section)")->required();
+  proxy_cmd->add_option("-o,--output", out, "PLY file to write")->required();
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -255,5 +303,6 @@ int main(int argc, char** argv) {
     return code == 0 ? 0 : 2;  // bad options: 2, as README says (CLI11's own codes are 100+)
   }
   if (info_cmd->parsed()) return info(path);
+  if (proxy_cmd->parsed()) return export_proxy(path, node, out);
   return verify(path, quiet);
 }

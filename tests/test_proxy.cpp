@@ -7,6 +7,7 @@
 #include "src/core/tessellate.h"
 #include "src/paging/proxy.h"
 #include "src/paging/proxy_distance.h"
+#include "src/paging/proxy_shell.h"
 #include "src/paging/store_model.h"
 #include "store/page_file.h"
 #include "store/store_file.h"
@@ -20,6 +21,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <numbers>
 #include <random>
 
@@ -173,18 +175,25 @@ size_t check_proxies(const StoreModel& model, uint32_t target) {
   return checked;
 }
 
-TEST(ProxyDistance, PointTriangleDistanceMatchesDenseSamplingAndTheBvhBruteForce) {
-  std::mt19937 rng(7);
+// `count` unconnected triangles of unit size scattered over [-5, 5]^3.
+void scattered_triangles(std::mt19937& rng, uint32_t count, std::vector<Vec3>& positions,
+                         std::vector<uint32_t>& indices) {
   std::uniform_real_distribution<double> u(-1.0, 1.0);
-  std::vector<Vec3> positions;
-  std::vector<uint32_t> indices;
-  for (uint32_t t = 0; t < 200; ++t) {
+  for (uint32_t t = 0; t < count; ++t) {
     const Vec3 c(u(rng) * 5, u(rng) * 5, u(rng) * 5);
     for (int k = 0; k < 3; ++k) {
       positions.push_back(c + Vec3(u(rng), u(rng), u(rng)));
       indices.push_back(static_cast<uint32_t>(positions.size() - 1));
     }
   }
+}
+
+TEST(ProxyDistance, PointTriangleDistanceMatchesDenseSamplingAndTheBvhBruteForce) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<Vec3> positions;
+  std::vector<uint32_t> indices;
+  scattered_triangles(rng, 200, positions, indices);
   positions[1] = positions[0];  // a degenerate one (a segment)
   const TriangleBvh bvh(positions, indices);
   for (int q = 0; q < 100; ++q) {
@@ -294,13 +303,14 @@ TEST(Proxy, DegenerateInputGivesFiniteBounds) {
       flat.add_triangle({Vec3(x, y, 0), Vec3(x + 1, y + 1, 0), Vec3(x, y + 1, 0)}, 0, 0);
     }
   }
-  // With room for the locked border (40 vertices) the flat grid simplifies without error.
+  // With room for the locked border (40 vertices) the flat grid simplifies without error: its
+  // bound is the measurement's slack at most (0.1% of the diagonal, proxy.h).
   ProxyOptions roomy = options;
   roomy.target_triangles = 64;
   const ProxyMesh p = simplify_proxy(proxy_input(flat, roomy), roomy);
   EXPECT_FALSE(p.empty());
   EXPECT_LE(p.triangle_count(), 2u * roomy.target_triangles);
-  EXPECT_LT(p.error, 1e-9);
+  EXPECT_LE(p.error, 1e-3 * std::sqrt(200.0));
   // Without it, the border unlocked (no clustering, which would open holes): a coarser proxy
   // whose bound says how far it strays.
   ProxySimplifyStats stats;
@@ -332,6 +342,197 @@ TEST(Proxy, DegenerateInputGivesFiniteBounds) {
     const Vec3 on = Vec3(3, 4, 5) + 2.0 * glm::normalize(Vec3(g(rng), g(rng), g(rng)));
     EXPECT_LE(distance_to_triangles(on, tris), b.error * (1 + 1e-9));
   }
+}
+
+// A box from lo to hi as 12 triangles (outward), source `source`.
+void add_box(Scene& s, const Vec3& lo, const Vec3& hi, uint32_t source) {
+  const Vec3 c[8] = {{lo.x, lo.y, lo.z}, {hi.x, lo.y, lo.z}, {hi.x, hi.y, lo.z}, {lo.x, hi.y, lo.z},
+                     {lo.x, lo.y, hi.z}, {hi.x, lo.y, hi.z}, {hi.x, hi.y, hi.z}, {lo.x, hi.y, hi.z}};
+  const int f[6][4] = {{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4}, {2, 3, 7, 6}, {1, 2, 6, 5}, {3, 0, 4, 7}};
+  for (const auto& q : f) {
+    s.add_triangle({c[q[0]], c[q[1]], c[q[2]]}, source, 0);
+    s.add_triangle({c[q[0]], c[q[2]], c[q[3]]}, source, 0);
+  }
+}
+
+// A closed two-room house of thin slabs (walls 0.1, floor and roof 0.15) at `o`: 10 x 8 x 3.
+Scene thin_house(const Vec3& o) {
+  Scene s;
+  add_box(s, o + Vec3(0, 0, 0), o + Vec3(10, 8, 0.15), 0);      // floor
+  add_box(s, o + Vec3(0, 0, 2.85), o + Vec3(10, 8, 3), 1);      // roof
+  add_box(s, o + Vec3(0, 0, 0.15), o + Vec3(0.1, 8, 2.85), 2);  // walls
+  add_box(s, o + Vec3(9.9, 0, 0.15), o + Vec3(10, 8, 2.85), 3);
+  add_box(s, o + Vec3(0.1, 0, 0.15), o + Vec3(9.9, 0.1, 2.85), 4);
+  add_box(s, o + Vec3(0.1, 7.9, 0.15), o + Vec3(9.9, 8, 2.85), 5);
+  add_box(s, o + Vec3(4.95, 0.1, 0.15), o + Vec3(5.05, 7.9, 2.85), 6);  // the partition
+  return s;
+}
+
+TEST(ProxyShell, ThinWalledHouseGivesOneClosedOutwardShellAroundItsRooms) {
+  for (const Vec3 origin : {Vec3(0.0), Vec3(1e6, -2e6, 5e5)}) {
+    const Scene house = thin_house(origin);
+    const ProxyMesh input = proxy_input(house, {});
+    const Aabb region{origin, origin + Vec3(10, 8, 3)};
+    const VoxelShell shell = voxel_shell(input.positions, input.indices, 32, &region, std::nullopt);
+    ASSERT_FALSE(shell.indices.empty());
+    EXPECT_NEAR(shell.voxel, 10.0 / 32, 1e-12);
+    // Closed: every edge is used by exactly two triangles, once in each direction.
+    std::map<std::pair<uint32_t, uint32_t>, int> edges;
+    for (size_t i = 0; i < shell.indices.size(); i += 3) {
+      for (int k = 0; k < 3; ++k) ++edges[{shell.indices[i + k], shell.indices[i + (k + 1) % 3]}];
+    }
+    for (const auto& [e, n] : edges) {
+      EXPECT_EQ(n, 1);
+      EXPECT_EQ(edges.count({e.second, e.first}), 1u);
+    }
+    // Outward and solid: the signed volume is the house's (rooms filled, not surfaced inside),
+    // a shell of the walls alone would enclose about 40 m^3 at most.
+    double volume = 0.0;
+    for (size_t i = 0; i < shell.indices.size(); i += 3) {
+      const Vec3 a = shell.positions[shell.indices[i]] - origin, b = shell.positions[shell.indices[i + 1]] - origin,
+                 c = shell.positions[shell.indices[i + 2]] - origin;
+      volume += glm::dot(a, glm::cross(b, c)) / 6.0;
+    }
+    EXPECT_GT(volume, 0.85 * 240.0);
+    EXPECT_LE(volume, 240.0 * (1 + 1e-9));  // kept inside the region
+    // Near the house: every shell vertex lies within the region and within two voxels of a wall,
+    // and every corner of the house within two voxels of the shell.
+    std::vector<Triangle> shell_tris, house_tris(house.triangles.begin(), house.triangles.end());
+    for (size_t i = 0; i < shell.indices.size(); i += 3) {
+      shell_tris.push_back({shell.positions[shell.indices[i]], shell.positions[shell.indices[i + 1]],
+                            shell.positions[shell.indices[i + 2]]});
+    }
+    for (const Vec3& p : shell.positions) {
+      EXPECT_TRUE(region.contains(p)) << p.x << " " << p.y << " " << p.z;
+      EXPECT_LE(distance_to_triangles(p, house_tris), 2.0 * shell.voxel);
+    }
+    for (const Vec3& p : {origin, origin + Vec3(10, 8, 3), origin + Vec3(10, 0, 3), origin + Vec3(0, 8, 0)}) {
+      EXPECT_LE(distance_to_triangles(p, shell_tris), 2.0 * shell.voxel);
+    }
+  }
+  // Nothing to enclose: no shell.
+  EXPECT_TRUE(voxel_shell({}, {}, 32, nullptr, std::nullopt).indices.empty());
+  const std::vector<Vec3> point = {Vec3(1, 1, 1)};
+  EXPECT_TRUE(voxel_shell(point, std::vector<uint32_t>{0, 0, 0}, 32, nullptr, std::nullopt).indices.empty());
+}
+
+TEST(Proxy, ThinWallsTheSimplifierWouldRemoveGiveWayToAShellWithinItsBound) {
+  // A street of 24 thin-walled houses: meshopt_simplify, its error unbounded, reaches 64
+  // triangles by deleting whole walls and houses; the shell keeps every house's outside.
+  Scene street;
+  for (int i = 0; i < 24; ++i) {
+    const Scene h = thin_house(Vec3(12.0 * (i % 6), 10.0 * (i / 6), 0));
+    for (const Triangle& t : h.triangles) street.add_triangle(t, static_cast<uint32_t>(street.size()), 0);
+  }
+  ProxyOptions options;
+  options.target_triangles = 64;
+  const ProxyMesh input = proxy_input(street, options);
+  ProxySimplifyStats with_shell, without_shell;
+  const ProxyMesh proxy = simplify_proxy(input, options, &with_shell);
+  ProxyOptions no_shell = options;
+  no_shell.shell_resolution = 0;
+  const ProxyMesh plain = simplify_proxy(input, no_shell, &without_shell);
+  EXPECT_TRUE(with_shell.shell);
+  EXPECT_FALSE(without_shell.shell);
+  EXPECT_LT(proxy.error, 0.5 * plain.error) << proxy.error << " vs " << plain.error;
+  EXPECT_LE(proxy.triangle_count(), 6u * options.target_triangles);
+  // The bound holds both ways (brute force): input corners to the proxy, proxy corners to the input.
+  const std::vector<Triangle> proxy_tris = proxy_scene(proxy).triangles;
+  const std::vector<Triangle> input_tris(street.triangles.begin(), street.triangles.end());
+  for (const Triangle& t : input_tris) {
+    for (const Vec3& p : {t.v0, t.v1, t.v2}) EXPECT_LE(distance_to_triangles(p, proxy_tris), proxy.error * (1 + 1e-9));
+  }
+  for (const Triangle& t : proxy_tris) {
+    for (const Vec3& p : {t.v0, t.v1, t.v2, (t.v0 + t.v1 + t.v2) / 3.0}) {
+      EXPECT_LE(distance_to_triangles(p, input_tris), proxy.error * (1 + 1e-9));
+    }
+  }
+  // Each shell triangle names a primitive of the input (the nearest one).
+  for (uint32_t i = 0; i < proxy.triangle_count(); ++i) EXPECT_LT(proxy.sources[i], street.size());
+}
+
+TEST(ProxyDistance, NearestNamesATriangleAtTheDistance) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<Vec3> positions;
+  std::vector<uint32_t> indices;
+  scattered_triangles(rng, 150, positions, indices);
+  const TriangleBvh bvh(positions, indices);
+  for (int q = 0; q < 100; ++q) {
+    const Vec3 p(u(rng) * 7, u(rng) * 7, u(rng) * 7);
+    const uint32_t t = bvh.nearest(p);
+    ASSERT_LT(t, indices.size() / 3);
+    EXPECT_DOUBLE_EQ(point_triangle_distance(p, positions[indices[3 * t]], positions[indices[3 * t + 1]],
+                                             positions[indices[3 * t + 2]]),
+                     bvh.distance(p));
+  }
+  EXPECT_EQ(TriangleBvh({}, {}).nearest(Vec3(0.0)), UINT32_MAX);
+}
+
+// The largest distance from points of a triangle mesh to `bvh`, on a dense barycentric grid of
+// every triangle (n per side), by brute force.
+double dense_farthest(const std::vector<Vec3>& positions, const std::vector<uint32_t>& indices, const TriangleBvh& bvh,
+                      int n) {
+  double farthest = 0.0;
+  for (size_t t = 0; t + 2 < indices.size(); t += 3) {
+    const Vec3 &a = positions[indices[t]], &b = positions[indices[t + 1]], &c = positions[indices[t + 2]];
+    for (int i = 0; i <= n; ++i) {
+      for (int j = 0; i + j <= n; ++j) {
+        farthest = std::max(farthest, bvh.distance(a + (b - a) * (double(i) / n) + (c - a) * (double(j) / n)));
+      }
+    }
+  }
+  return farthest;
+}
+
+TEST(ProxyDistance, FarthestPointFindsTheLargestDistanceInsideATriangleNotOnlyAtItsCorners) {
+  for (const double offset : {0.0, 1e6}) {
+    const Vec3 o(offset, -offset, offset);
+    // A flat triangle over a valley whose two slopes rise to its corners: every corner lies on
+    // the valley (distance 0) while its middle hangs above the crease.
+    const std::vector<Vec3> flat = {o + Vec3(-1, -1, 1), o + Vec3(1, -1, 1), o + Vec3(-1, 1, 1)};
+    const std::vector<uint32_t> flat_indices = {0, 1, 2};
+    const std::vector<Vec3> valley = {o + Vec3(-2, -2, 2), o + Vec3(-2, 2, 2), o + Vec3(0, -2, 0), o + Vec3(0, 2, 0),
+                                      o + Vec3(2, -2, 2),  o + Vec3(2, 2, 2)};
+    const std::vector<uint32_t> valley_indices = {0, 2, 1, 1, 2, 3, 2, 4, 3, 3, 4, 5};
+    const TriangleBvh bvh(valley, valley_indices);
+    EXPECT_LT(farthest_sample(flat, bvh), 1e-9 * std::max(1.0, offset)) << "the corners lie on the valley";
+    const double dense = dense_farthest(flat, flat_indices, bvh, 200);
+    EXPECT_NEAR(dense, std::sqrt(0.5), 1e-6);  // (0, -1, 1), one above the crease
+    const double slack = 1e-3;
+    const double bound = farthest_triangle_point(flat, flat_indices, bvh, 0.0, slack);
+    const double margin = 2.0 / 200 / std::sqrt(3.0);  // how far a point lies from the dense grid
+    EXPECT_GE(bound, dense - 1e-9 * std::max(1.0, offset)) << "an upper bound, not a sample";
+    EXPECT_LE(bound, 1.05 * dense + slack + margin) << "and a tight one";
+    // A floor above the answer returns the floor.
+    EXPECT_EQ(farthest_triangle_point(flat, flat_indices, bvh, 5.0, slack), 5.0);
+  }
+}
+
+TEST(ProxyDistance, FarthestPointBoundsABumpyGridAgainstACoarseOneFromAbove) {
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> bump(-0.2, 0.2);
+  auto grid = [&](int n, bool bumpy, std::vector<Vec3>& positions, std::vector<uint32_t>& indices) {
+    for (int y = 0; y <= n; ++y) {
+      for (int x = 0; x <= n; ++x) positions.push_back(Vec3(8.0 * x / n, 8.0 * y / n, bumpy ? bump(rng) : 0.0));
+    }
+    for (int y = 0; y < n; ++y) {
+      for (int x = 0; x < n; ++x) {
+        const auto v = static_cast<uint32_t>(y * (n + 1) + x);
+        indices.insert(indices.end(), {v, v + 1, v + n + 2, v, v + n + 2, v + n + 1});
+      }
+    }
+  };
+  std::vector<Vec3> fine, coarse;
+  std::vector<uint32_t> fine_indices, coarse_indices;
+  grid(16, true, fine, fine_indices);
+  grid(3, false, coarse, coarse_indices);
+  const TriangleBvh bvh(coarse, coarse_indices);
+  const double dense = dense_farthest(fine, fine_indices, bvh, 24);
+  const double bound = farthest_triangle_point(fine, fine_indices, bvh, 0.0, 1e-3);
+  EXPECT_GE(bound, dense - 1e-12);
+  EXPECT_LE(bound, 1.05 * dense + 1e-3 + 0.5 / 24);
+  EXPECT_EQ(farthest_triangle_point(fine, {}, bvh, 0.0, 1e-3), 0.0);
 }
 
 TEST(BuildStoreProxy, EveryInteriorNodeOfATerrainHasAProxyWithinItsBound) {
@@ -454,6 +655,25 @@ TEST(StoreCommand, InfoAndVerifyShowProxies) {
   const auto verify = run_binary(FRONTIER_STORE_PATH, {"verify", path}, scratch());
   EXPECT_EQ(verify.exit_code, 0) << verify.err;
   EXPECT_NE(verify.out.find(fmt::format("{} proxies", pages)), std::string::npos) << verify.out;
+  // One node's proxy as a PLY mesh: as many triangles as its page; a node without one, or past
+  // the tree, is refused (exit 2).
+  const std::string ply = (scratch() / "root_proxy.ply").string();
+  const auto exported = run_binary(FRONTIER_STORE_PATH, {"proxy", path, "0", "-o", ply}, scratch());
+  EXPECT_EQ(exported.exit_code, 0) << exported.err;
+  const StoreProxy* root = model->proxy(0);
+  ASSERT_NE(root, nullptr);
+  EXPECT_NE(exported.out.find(fmt::format("node 0: {} triangles", root->triangles)), std::string::npos) << exported.out;
+  std::ifstream in(ply, std::ios::binary);
+  std::string header((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(header.find(fmt::format("element face {}", root->triangles)), std::string::npos);
+  uint32_t leaf = 0;
+  while (leaf < model->nodes().size() && !model->nodes()[leaf].is_leaf()) ++leaf;
+  for (const std::string& node : {std::to_string(leaf), std::to_string(model->nodes().size())}) {
+    const auto refused = run_binary(FRONTIER_STORE_PATH, {"proxy", path, node, "-o", ply + ".x"}, scratch());
+    EXPECT_EQ(refused.exit_code, 2) << node << refused.err;
+    EXPECT_NE(refused.err.find("node " + node), std::string::npos) << refused.err;
+    EXPECT_FALSE(fs::exists(ply + ".x"));
+  }
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 
 #include "src/core/tessellate.h"
 #include "src/paging/proxy_distance.h"
+#include "src/paging/proxy_shell.h"
 
 #include <meshoptimizer.h>
 
@@ -17,18 +18,6 @@
 
 namespace frontier {
 namespace {
-
-struct PositionHash {
-  size_t operator()(const Vec3& p) const {
-    uint64_t h = 0x9e3779b97f4a7c15ull;
-    for (int a = 0; a < 3; ++a) {
-      h ^= std::bit_cast<uint64_t>(p[a] + 0.0);  // + 0.0: -0 and +0 hash alike (they compare equal)
-      h *= 0xff51afd7ed558ccdull;
-      h ^= h >> 32;
-    }
-    return static_cast<size_t>(h);
-  }
-};
 
 struct TriangleKeyHash {
   size_t operator()(const std::array<uint32_t, 3>& k) const {
@@ -71,7 +60,7 @@ class MeshWelder {
     return it->second;
   }
   ProxyMesh& out_;
-  std::unordered_map<Vec3, uint32_t, PositionHash> index_;
+  std::unordered_map<Vec3, uint32_t, ExactPositionHash> index_;
   std::unordered_set<std::array<uint32_t, 3>, TriangleKeyHash> seen_;
 };
 
@@ -106,30 +95,51 @@ double tessellation_error(const Scene& scene, uint32_t i, const std::vector<Tria
   }
 }
 
-// The points where the proxy's distance to its input is sampled (proxy.h): the input's vertices
-// and the proxy's edge midpoints and centroids. The proxy's own vertices are input vertices (at
-// distance 0 both ways), so they are left out.
-std::vector<Vec3> input_samples(const ProxyMesh& input, const ProxyMesh& proxy) {
-  std::unordered_set<Vec3, PositionHash> kept(proxy.positions.begin(), proxy.positions.end());
-  std::vector<Vec3> out;
-  out.reserve(input.positions.size());
-  for (const Vec3& p : input.positions) {
-    if (!kept.contains(p)) out.push_back(p);
+// The shell proxy of `input` (proxy_shell.h) simplified towards `target` triangles, each triangle
+// named after the input triangle nearest its centroid; empty when no shell could be made.
+// `estimate`: the shell's offset from the input (one voxel, plus half a voxel's diagonal for
+// where the grid places it) and meshoptimizer's error in simplifying it.
+ProxyMesh shell_proxy(const ProxyMesh& input, const ProxyOptions& options, size_t target, const Aabb* region,
+                      const TriangleBvh& input_bvh, double& estimate) {
+  ProxyMesh out;
+  VoxelShell shell = voxel_shell(input.positions, input.indices, options.shell_resolution, region, options.lattice);
+  if (shell.indices.empty()) return out;
+  Aabb box;
+  for (const Vec3& p : shell.positions) box.extend(p);
+  const Vec3 centre = box.center();
+  std::vector<float> local(3 * shell.positions.size());
+  for (size_t v = 0; v < shell.positions.size(); ++v) {
+    for (int a = 0; a < 3; ++a) local[3 * v + a] = static_cast<float>(shell.positions[v][a] - centre[a]);
+  }
+  std::vector<uint32_t> kept(shell.indices.size());
+  float error = 0.0f;
+  size_t count = 0;
+  if (shell.indices.size() > 3 * target) {
+    count = meshopt_simplify(kept.data(), shell.indices.data(), shell.indices.size(), local.data(),
+                             shell.positions.size(), 3 * sizeof(float), 3 * target, FLT_MAX, 0, &error);
+  }
+  if (count == 0) {  // already within the target, or nothing simplified it
+    kept = shell.indices;
+    count = kept.size();
+    error = 0.0f;
+  }
+  estimate = shell.voxel * (1.0 + 0.5 * std::sqrt(3.0)) +
+             static_cast<double>(error) *
+                 static_cast<double>(meshopt_simplifyScale(local.data(), shell.positions.size(), 3 * sizeof(float)));
+  MeshWelder weld(out, count / 3);
+  for (size_t i = 0; i < count; i += 3) {
+    const Vec3& a = shell.positions[kept[i]];
+    const Vec3& b = shell.positions[kept[i + 1]];
+    const Vec3& c = shell.positions[kept[i + 2]];
+    const uint32_t t = input_bvh.nearest((a + b + c) / 3.0);
+    weld.add(a, b, c, input.sources[t], input.materials[t], false);
   }
   return out;
 }
 
-std::vector<Vec3> proxy_samples(const ProxyMesh& proxy) {
-  std::vector<Vec3> out;
-  out.reserve(4 * proxy.triangle_count());
-  for (size_t t = 0; t < proxy.triangle_count(); ++t) {
-    const Vec3& a = proxy.positions[proxy.indices[3 * t]];
-    const Vec3& b = proxy.positions[proxy.indices[3 * t + 1]];
-    const Vec3& c = proxy.positions[proxy.indices[3 * t + 2]];
-    out.insert(out.end(), {(a + b + c) / 3.0, 0.5 * (a + b), 0.5 * (b + c), 0.5 * (c + a)});
-  }
-  return out;
-}
+// simplify_proxy tries a shell when its simplified mesh lies farther than this many shell voxels
+// from the input.
+constexpr double kShellTriggerVoxels = 6.0;
 
 }  // namespace
 
@@ -179,14 +189,42 @@ ProxyMesh merge_proxies(const ProxyMesh& lower, const ProxyMesh& upper) {
   return out;
 }
 
-double sampled_distance(const ProxyMesh& input, const ProxyMesh& proxy) {
-  const TriangleBvh proxy_bvh(proxy.positions, proxy.indices);
-  const TriangleBvh input_bvh(input.positions, input.indices);
-  return std::max(farthest_sample(input_samples(input, proxy), proxy_bvh),
-                  farthest_sample(proxy_samples(proxy), input_bvh));
+namespace {
+// The points where the proxy's side of the distance is sampled: its vertices, edge midpoints and
+// centroids.
+std::vector<Vec3> proxy_samples(const ProxyMesh& proxy) {
+  std::vector<Vec3> out;
+  out.reserve(proxy.positions.size() + 4 * proxy.triangle_count());
+  out.insert(out.end(), proxy.positions.begin(), proxy.positions.end());
+  for (size_t t = 0; t < proxy.triangle_count(); ++t) {
+    const Vec3& a = proxy.positions[proxy.indices[3 * t]];
+    const Vec3& b = proxy.positions[proxy.indices[3 * t + 1]];
+    const Vec3& c = proxy.positions[proxy.indices[3 * t + 2]];
+    out.insert(out.end(), {(a + b + c) / 3.0, 0.5 * (a + b), 0.5 * (b + c), 0.5 * (c + a)});
+  }
+  return out;
 }
 
-ProxyMesh simplify_proxy(const ProxyMesh& input, const ProxyOptions& options, ProxySimplifyStats* stats) {
+// measured_distance may exceed the true distance by this fraction of the input's diagonal (what
+// it spends on triangles straddling the other mesh's creases and edges; proxy_distance.h).
+constexpr double kMeasureSlack = 1e-3;
+
+double measured_distance(const ProxyMesh& input, const TriangleBvh& input_bvh, const ProxyMesh& proxy) {
+  const TriangleBvh proxy_bvh(proxy.positions, proxy.indices);
+  Aabb box;
+  for (const Vec3& p : input.positions) box.extend(p);
+  const double slack = kMeasureSlack * glm::length(box.extent());
+  const double input_side = farthest_triangle_point(input.positions, input.indices, proxy_bvh, 0.0, slack);
+  return std::max(input_side, farthest_sample(proxy_samples(proxy), input_bvh));
+}
+}  // namespace
+
+double measured_distance(const ProxyMesh& input, const ProxyMesh& proxy) {
+  return measured_distance(input, TriangleBvh(input.positions, input.indices), proxy);
+}
+
+ProxyMesh simplify_proxy(const ProxyMesh& input, const ProxyOptions& options, ProxySimplifyStats* stats,
+                         const Aabb* region) {
   ProxySimplifyStats local;
   ProxySimplifyStats& st = stats != nullptr ? *stats : local;
   st = {};
@@ -225,10 +263,30 @@ ProxyMesh simplify_proxy(const ProxyMesh& input, const ProxyOptions& options, Pr
       st.unlocked = true;
     }
   }
+  // A voxel shell (proxy_shell.h) with its measured bound; empty when none could be made.
+  const TriangleBvh input_bvh(input.positions, input.indices);
+  auto make_shell = [&](double& estimate, double& measured) {
+    ProxyMesh shell;
+    if (options.shell_resolution <= 0) return shell;
+    shell = shell_proxy(input, options, target, region, input_bvh, estimate);
+    if (shell.empty()) return shell;
+    shell.subtree_triangles = input.subtree_triangles;
+    measured = measured_distance(input, input_bvh, shell);
+    shell.error = std::max(estimate, measured) + input.error;
+    return shell;
+  };
   if (count == 0 || count > 12 * target) {
-    // Clustering, the last resort (unlocked still above four times the target: a node of
-    // disconnected parts, or one whose children's borders moved apart): reaches any size but
-    // keeps no topology, so it opens holes.
+    // Unlocked still above twelve times the target: a node of disconnected parts (a building's
+    // walls and floors), or one whose children's borders moved apart. A voxel shell keeps every
+    // surface a distant viewer sees, thin ones too; clustering is the last resort (it reaches
+    // any size but collapses whatever is thinner than its grid, opening holes).
+    double estimate = 0.0, measured = 0.0;
+    if (ProxyMesh shell = make_shell(estimate, measured); !shell.empty()) {
+      st.shell = true;
+      st.estimate = estimate;
+      st.measured = measured;
+      return shell;
+    }
     std::vector<uint32_t> sloppy(input.indices.size());
     float sloppy_error = 0.0f;
     const size_t n = meshopt_simplifySloppy(sloppy.data(), input.indices.data(), input.indices.size(),
@@ -258,8 +316,23 @@ ProxyMesh simplify_proxy(const ProxyMesh& input, const ProxyOptions& options, Pr
   }
   if (out.empty()) return input;
   out.subtree_triangles = input.subtree_triangles;
-  st.measured = sampled_distance(input, out);
+  st.measured = measured_distance(input, input_bvh, out);
   out.error = std::max(st.estimate, st.measured) + input.error;
+  // With an unbounded error the simplifier removes whole small components (a wall, a pillar)
+  // before it flattens a big one, and the measured distance shows it: a result farther from its
+  // input than a few of the shell's voxels gives way to the shell when that lies nearer.
+  const Vec3 extent = box.extent();
+  const double voxel = std::max({extent.x, extent.y, extent.z}) / std::max(options.shell_resolution, 1);
+  if (options.shell_resolution > 0 && st.measured > kShellTriggerVoxels * voxel) {
+    double estimate = 0.0, measured = 0.0;
+    ProxyMesh shell = make_shell(estimate, measured);
+    if (!shell.empty() && shell.error < out.error) {
+      st.shell = true;
+      st.estimate = estimate;
+      st.measured = measured;
+      return shell;
+    }
+  }
   return out;
 }
 

@@ -10,18 +10,28 @@
 //   node   merge_proxies(lower, upper): both children's meshes welded, exact duplicate triangles
 //          (a primitive straddling cells is stored in each) dropped; the bound is the larger one.
 //          simplify_proxy(merged): meshoptimizer's simplifier with locked borders (so sibling
-//          proxies meet), unlocked when the border alone keeps it above twice the target (no
-//          hole; the border may move within the bound), sloppy clustering only when even that
-//          cannot get there (it opens holes a viewer shows as background).
-// A proxy's vertices are always vertices of its input (meshoptimizer only removes vertices), so
-// they stay on the global lattice and encode with the store's cell codecs.
+//          proxies meet), unlocked when the border alone keeps it above six times the target (no
+//          hole; the border may move within the bound). Where even that stays above twelve times
+//          the target (disconnected parts), or its result lies farther than six shell voxels from
+//          its input (with its error unbounded the simplifier deletes whole small components —
+//          walls, pillars — first), a voxel shell (proxy_shell.h: OpenVDB's distance field and
+//          mesher, rooms filled, kept inside the node's region, then simplified) is made, and
+//          kept when its bound is the smaller; sloppy clustering only when no shell can be made
+//          (it opens holes a viewer shows as background).
+// A proxy's vertices are vertices of its input (meshoptimizer only removes vertices), so they
+// stay on the global lattice; a shell's are new points, snapped to the lattice. Both encode with
+// the store's cell codecs.
 //
 // The bound of a simplified node = max(meshoptimizer's error estimate, the measured two-sided
-// sampled distance between the proxy and its input) + the input's bound: by the triangle
-// inequality, a chain of such bounds covers the distance to the subtree's original geometry. The
-// measured distance samples every input vertex against the proxy and every proxy vertex, edge
-// midpoint and centroid against the input (TriangleBvh queries; proxy vertices are input vertices,
-// at distance 0 both ways, and are not queried).
+// distance between the proxy and its input) + the input's bound: by the triangle inequality, a
+// chain of such bounds covers the distance to the subtree's original geometry. The input's side
+// of the measured distance is a rigorous upper bound over every point of the input's triangles,
+// not a sample (TriangleBvh::farthest_point: convexity at the corners, splitting where the
+// corners' nearest triangles differ; at most 0.1% of the input's diagonal, or 1/1800 of a
+// triangle's longest edge, above the true distance): no part of the subtree lies farther from the
+// proxy than its bound. The proxy's side is sampled at its vertices, edge midpoints and centroids
+// (its few large triangles would need splitting to the bound's size to be bounded everywhere). A
+// shell's estimate is its offset (a voxel and half a voxel's diagonal) plus meshoptimizer's.
 //
 // All functions are pure and may run on any number of threads at once.
 #pragma once
@@ -55,15 +65,19 @@ struct ProxyOptions {
   std::optional<Lattice> lattice;
   // Segments around a circle for curved primitives (src/core/tessellate.h).
   int segments = 6;
+  // Voxels along the longest side of a voxel shell (proxy_shell.h), made where the unlocked
+  // simplifier stays above twelve times the target; 0: meshopt_simplifySloppy there instead.
+  int shell_resolution = 32;
 };
 
 // What simplify_proxy did, for the build's report.
 struct ProxySimplifyStats {
   bool simplified = false;   // the input had more triangles than the target
   bool unlocked = false;     // the locked border kept meshopt_simplify above twice the target: unlocked
-  bool sloppy = false;       // meshopt_simplifySloppy replaced meshopt_simplify's result (unlocked too far)
+  bool shell = false;        // a voxel shell replaced meshopt_simplify's result (unlocked too far)
+  bool sloppy = false;       // meshopt_simplifySloppy did (unlocked too far, and no shell)
   double estimate = 0.0;     // meshoptimizer's absolute error (result_error x simplifyScale)
-  double measured = 0.0;     // sampled two-sided distance between proxy and input
+  double measured = 0.0;     // measured two-sided distance between proxy and input
 };
 
 // A leaf's input: `cell`'s primitives as one welded mesh. Triangles are taken as they are (they
@@ -81,10 +95,14 @@ ProxyMesh merge_proxies(const ProxyMesh& lower, const ProxyMesh& upper);
 // error), else simplified (at most twice the target unless even sloppy clustering cannot get
 // there; borders locked when that gets there, else unlocked, else sloppy clustering, which
 // opens holes) with the bound described above. Never empty for a non-empty input.
-ProxyMesh simplify_proxy(const ProxyMesh& input, const ProxyOptions& options, ProxySimplifyStats* stats = nullptr);
+// `region`: the node's region, which a voxel shell is kept inside (none: the shell may reach a
+// voxel beyond the input).
+ProxyMesh simplify_proxy(const ProxyMesh& input, const ProxyOptions& options, ProxySimplifyStats* stats = nullptr,
+                         const Aabb* region = nullptr);
 
-// The sampled two-sided distance between two meshes (see above; `a` is the input, `b` the proxy).
-double sampled_distance(const ProxyMesh& input, const ProxyMesh& proxy);
+// The two-sided distance between a proxy and its input (see above): an upper bound over every
+// point of the input, the largest over the proxy's samples.
+double measured_distance(const ProxyMesh& input, const ProxyMesh& proxy);
 
 // The mesh as a Scene of triangles (source and material kept), to encode as a page.
 Scene proxy_scene(const ProxyMesh& mesh);

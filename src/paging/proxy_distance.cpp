@@ -10,6 +10,8 @@ namespace frontier {
 namespace {
 
 constexpr uint32_t kLeafTriangles = 4;
+// farthest_on_triangle splits a triangle at most this deep (1/1024 of its longest edge; the slack and floor stop it sooner).
+constexpr int kMaxSplits = 10;
 
 Vec3 closest_on_segment(const Vec3& p, const Vec3& s, const Vec3& e) {
   const Vec3 d = e - s;
@@ -90,6 +92,7 @@ TriangleBvh::TriangleBvh(std::span<const Vec3> positions, std::span<const uint32
     std::vector<Triangle> sorted(triangles_.size());
     for (size_t i = 0; i < order.size(); ++i) sorted[i] = triangles_[order[i]];
     triangles_ = std::move(sorted);
+    order_ = std::move(order);
   }
 }
 
@@ -122,8 +125,9 @@ uint32_t TriangleBvh::build(uint32_t first, uint32_t count, std::vector<uint32_t
   return index;
 }
 
-double TriangleBvh::distance_above(const Vec3& p, double floor) const {
-  if (nodes_.empty()) return kInfinity;
+// The squared distance to the nearest triangle (its index into triangles_ in `*nearest`), or some
+// value <= floor^2 once a triangle within `floor` is met.
+double TriangleBvh::search(const Vec3& p, double floor, uint32_t* nearest) const {
   const double floor2 = floor * floor;
   double best2 = kInfinity;
   // Nodes to visit with the squared distance to their box (a lower bound), nearer child on top.
@@ -143,7 +147,11 @@ double TriangleBvh::distance_above(const Vec3& p, double floor) const {
       for (uint32_t i = n.first; i < n.first + n.count; ++i) {
         const Triangle& t = triangles_[i];
         const Vec3 d = p - closest_on_triangle(p, t.v0, t.v1, t.v2);
-        best2 = std::min(best2, glm::dot(d, d));
+        const double d2 = glm::dot(d, d);
+        if (d2 < best2) {
+          best2 = d2;
+          if (nearest != nullptr) *nearest = i;
+        }
       }
       if (best2 <= floor2) break;
       continue;
@@ -158,7 +166,104 @@ double TriangleBvh::distance_above(const Vec3& p, double floor) const {
       stack[top++] = {upper, du};
     }
   }
-  return std::sqrt(best2);
+  return best2;
+}
+
+double TriangleBvh::distance_above(const Vec3& p, double floor) const {
+  if (nodes_.empty()) return kInfinity;
+  return std::sqrt(search(p, floor, nullptr));
+}
+
+uint32_t TriangleBvh::nearest(const Vec3& p) const {
+  if (nodes_.empty()) return UINT32_MAX;
+  uint32_t at = 0;
+  search(p, 0.0, &at);
+  return order_[at];
+}
+
+double TriangleBvh::farthest_on_triangle(const Vec3& a, const Vec3& b, const Vec3& c, double floor,
+                                         double slack) const {
+  if (nodes_.empty()) return kInfinity;
+  const Vec3 corners[3] = {a, b, c};
+  Corner near[3];
+  for (int k = 0; k < 3; ++k) near[k].d = std::sqrt(search(corners[k], 0.0, &near[k].triangle));
+  return farthest_on_triangle(corners, near, floor, slack, kMaxSplits);
+}
+
+// abc with its corners' exact distances and nearest triangles (leaf order) already known.
+double TriangleBvh::farthest_on_triangle(const Vec3 (&corners)[3], const Corner (&near)[3], double floor,
+                                         double slack, int depth) const {
+  const Vec3 &a = corners[0], &b = corners[1], &c = corners[2];
+  const double lower = std::max({near[0].d, near[1].d, near[2].d});
+  // Every point lies within longest / sqrt 3 of a corner (the circumradius bound), and the
+  // distance is 1-Lipschitz.
+  const double longest = std::sqrt(std::max({glm::dot(b - a, b - a), glm::dot(c - b, c - b), glm::dot(a - c, a - c)}));
+  double best = lower + longest / std::sqrt(3.0);
+  if (best <= floor) return best;
+  for (int k = 0; k < 3; ++k) {
+    if ((k > 0 && near[k].triangle == near[0].triangle) || (k > 1 && near[k].triangle == near[1].triangle)) continue;
+    const Triangle& t = triangles_[near[k].triangle];
+    double m = 0.0;
+    for (const Vec3& p : corners) m = std::max(m, point_triangle_distance(p, t.v0, t.v1, t.v2));
+    best = std::min(best, m);
+  }
+  if (depth == 0 || best <= std::max(floor, 1.05 * lower + slack)) return best;
+  const Vec3 mid[3] = {0.5 * (a + b), 0.5 * (b + c), 0.5 * (c + a)};
+  Corner at_mid[3];
+  for (int k = 0; k < 3; ++k) at_mid[k].d = std::sqrt(search(mid[k], 0.0, &at_mid[k].triangle));
+  const Vec3 pieces[4][3] = {{mid[0], mid[1], mid[2]}, {a, mid[0], mid[2]}, {mid[0], b, mid[1]}, {mid[2], mid[1], c}};
+  const Corner piece_near[4][3] = {{at_mid[0], at_mid[1], at_mid[2]},
+                                   {near[0], at_mid[0], at_mid[2]},
+                                   {at_mid[0], near[1], at_mid[1]},
+                                   {at_mid[2], at_mid[1], near[2]}};
+  double split = 0.0;
+  for (int k = 0; k < 4; ++k) {
+    split = std::max(split, farthest_on_triangle(pieces[k], piece_near[k], std::max(floor, split), slack, depth - 1));
+  }
+  return std::min(best, split);
+}
+
+double TriangleBvh::farthest_point(std::span<const Vec3> positions, std::span<const uint32_t> indices, double floor,
+                                   double slack) const {
+  if (indices.empty()) return 0.0;
+  if (nodes_.empty()) return kInfinity;
+  // Each vertex's distance once (a vertex is shared by about six triangles); the largest of them
+  // is a floor no triangle needs to be measured below. Below the floor so far, any triangle within
+  // it will do (search stops there; its distance bounds the vertex's from above), and most
+  // triangles are settled by those bounds (corners + longest edge / sqrt 3 <= floor). The others'
+  // corners are measured exactly, once, before their triangle is.
+  std::vector<Corner> near(positions.size());
+  std::vector<uint8_t> state(positions.size(), 0);  // 0 unused, 1 bounded, 2 exact
+  for (uint32_t i : indices) state[i] = 1;
+  for (size_t v = 0; v < positions.size(); ++v) {
+    if (state[v] == 0) continue;
+    const double d2 = search(positions[v], floor, &near[v].triangle);
+    near[v].d = std::sqrt(d2);
+    if (d2 > floor * floor) state[v] = 2;
+    floor = std::max(floor, near[v].d);
+  }
+  double farthest = floor;
+  for (size_t i = 0; i + 2 < indices.size(); i += 3) {
+    const uint32_t* k = &indices[i];
+    const Vec3 corners[3] = {positions[k[0]], positions[k[1]], positions[k[2]]};
+    const double longest = std::sqrt(std::max({glm::dot(corners[1] - corners[0], corners[1] - corners[0]),
+                                               glm::dot(corners[2] - corners[1], corners[2] - corners[1]),
+                                               glm::dot(corners[0] - corners[2], corners[0] - corners[2])}));
+    if (std::max({near[k[0]].d, near[k[1]].d, near[k[2]].d}) + longest / std::sqrt(3.0) <= farthest) continue;
+    for (int j = 0; j < 3; ++j) {
+      if (state[k[j]] == 2) continue;
+      near[k[j]].d = std::sqrt(search(corners[j], 0.0, &near[k[j]].triangle));
+      state[k[j]] = 2;
+    }
+    const Corner corner_near[3] = {near[k[0]], near[k[1]], near[k[2]]};
+    farthest = std::max(farthest, farthest_on_triangle(corners, corner_near, farthest, slack, kMaxSplits));
+  }
+  return farthest;
+}
+
+double farthest_triangle_point(std::span<const Vec3> positions, std::span<const uint32_t> indices,
+                               const TriangleBvh& bvh, double floor, double slack) {
+  return bvh.farthest_point(positions, indices, floor, slack);
 }
 
 double farthest_sample(std::span<const Vec3> samples, const TriangleBvh& bvh) {

@@ -31,6 +31,21 @@ class TriangleBvh {
   // first triangle within `floor`). farthest_sample's pruning: a sample no farther than the
   // farthest one so far cannot change the maximum.
   double distance_above(const Vec3& p, double floor) const;
+  // The index (in construction order) of a triangle nearest to p; UINT32_MAX when there are none.
+  uint32_t nearest(const Vec3& p) const;
+  // An upper bound on the largest distance from any point of the closed triangle (a, b, c) to the
+  // mesh, never below its corners' distances: rigorous, not sampled. The distance to one triangle
+  // T is convex, so over abc it peaks at a corner, and the mesh lies no farther than T does; the
+  // distance is also 1-Lipschitz, so no point lies farther than its corners' plus longest edge /
+  // sqrt 3. With T the best of the corners' nearest triangles, abc is split in four (at most ten
+  // times deep) while the bound exceeds both `floor` and 1.05x its corners' distances + `slack`:
+  // the result exceeds the true largest distance by at most that much where it is above `floor`
+  // (or by longest edge / (1024 sqrt 3) where the splits run out).
+  double farthest_on_triangle(const Vec3& a, const Vec3& b, const Vec3& c, double floor, double slack) const;
+  // The largest of farthest_on_triangle over the triangles (indices as for the constructor) and
+  // `floor`, each vertex's nearest triangle found once; 0 without triangles.
+  double farthest_point(std::span<const Vec3> positions, std::span<const uint32_t> indices, double floor,
+                        double slack) const;
   size_t triangle_count() const { return triangles_.size(); }
 
  private:
@@ -39,13 +54,26 @@ class TriangleBvh {
     uint32_t first = 0;  // leaf: into triangles_; interior: the upper child (the lower is next)
     uint32_t count = 0;  // 0: interior
   };
+  double search(const Vec3& p, double floor, uint32_t* nearest) const;
+  struct Corner {
+    double d = 0.0;         // distance to the nearest triangle
+    uint32_t triangle = 0;  // that triangle, in leaf order
+  };
+  double farthest_on_triangle(const Vec3 (&corners)[3], const Corner (&near)[3], double floor, double slack,
+                              int depth) const;
   uint32_t build(uint32_t first, uint32_t count, std::vector<uint32_t>& order, const std::vector<Vec3>& centroids);
 
-  std::vector<Triangle> triangles_;
+  std::vector<Triangle> triangles_;  // in leaf order
+  std::vector<uint32_t> order_;      // triangles_[i] is triangle order_[i] of the input
   std::vector<Node> nodes_;
 };
 
 // The largest distance from any of `samples` to the mesh of `bvh` (0 without samples).
 double farthest_sample(std::span<const Vec3> samples, const TriangleBvh& bvh);
+
+// An upper bound on the largest distance from any point of the triangles (indices as for
+// TriangleBvh) to the mesh of `bvh`, or `floor` if larger (TriangleBvh::farthest_point).
+double farthest_triangle_point(std::span<const Vec3> positions, std::span<const uint32_t> indices,
+                               const TriangleBvh& bvh, double floor, double slack);
 
 }  // namespace frontier
