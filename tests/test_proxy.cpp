@@ -509,6 +509,31 @@ TEST(ProxyDistance, FarthestPointFindsTheLargestDistanceInsideATriangleNotOnlyAt
   }
 }
 
+TEST(ProxyDistance, ATriangleStraddlingAnEdgeOfItsMeshIsBoundedOnEachSide) {
+  for (const double offset : {0.0, 1e6}) {
+    const Vec3 o(offset, offset, -offset);
+    // A square of two triangles, flat, and then folded along its diagonal (a ridge of height h).
+    for (const double h : {0.0, 0.5}) {
+      const std::vector<Vec3> square = {o + Vec3(0, 0, 0), o + Vec3(4, 0, h), o + Vec3(4, 4, 0), o + Vec3(0, 4, -h)};
+      const std::vector<uint32_t> square_indices = {0, 1, 2, 0, 2, 3};
+      const TriangleBvh bvh(square, square_indices);
+      // A small triangle lying on the square across its diagonal (corners on either side).
+      const Vec3 a = o + Vec3(1.5, 1.0, 0), b = o + Vec3(2.5, 2.0, 0), c = o + Vec3(1.2, 2.2, 0);
+      const std::vector<Vec3> small = {a, b, c};
+      const double dense = dense_farthest(small, {0, 1, 2}, bvh, 300);
+      const double bound = bvh.farthest_on_triangle(a, b, c, 0.0, 0.0);
+      const double eps = 1e-9 * std::max(1.0, offset);
+      EXPECT_GE(bound, dense - eps) << h;
+      // Flat, each side lies on its own triangle: exactly 0, which no split of the triangle
+      // reaches (a piece across the diagonal is never inside one triangle).
+      if (h == 0.0) {
+        EXPECT_LE(bound, eps);
+      }
+      EXPECT_LE(bound, dense + 1.0 / 300 + eps) << h;
+    }
+  }
+}
+
 TEST(ProxyDistance, FarthestPointBoundsABumpyGridAgainstACoarseOneFromAbove) {
   std::mt19937 rng(9);
   std::uniform_real_distribution<double> bump(-0.2, 0.2);

@@ -532,8 +532,12 @@ KdTree KdTree::top_only(const std::vector<Node>& nodes, const Aabb& bounds) {
 }
 
 int32_t KdTree::descend(int32_t n, const Vec3& p, const Vec3& dir) const {
-  if (static_cast<size_t>(n) < cover_.size() && cover_[static_cast<size_t>(n)] != kNone) {
-    n = cover_[static_cast<size_t>(n)];
+  if (links_ > 0 && static_cast<size_t>(n) < parent_.size()) {
+    int32_t outer = kNone;
+    for (int32_t m = parent_[static_cast<size_t>(n)]; m >= 0; m = parent_[static_cast<size_t>(m)]) {
+      if (nodes_[static_cast<size_t>(m)].is_link()) outer = m;
+    }
+    if (outer != kNone) n = outer;
   }
   while (true) {
     const Node& node = nodes_[static_cast<size_t>(n)];

@@ -147,10 +147,13 @@ class KdTree {
   std::vector<uint32_t> refs_;
   std::vector<Aabb> ref_bounds_;
   uint32_t depth_ = 0;
-  // PagedWorld only: for each top node, the outermost linked (axis 4) ancestor it lies under,
-  // or kNone. A rope may lead to a node deep inside a linked node's region, past the link:
-  // descend() starts at the link instead, so the ray meets what the link draws there.
-  std::vector<int32_t> cover_;
+  // PagedWorld only: each top node's parent (-1 for the root) and how many top nodes are linked
+  // (axis 4). A rope may lead to a node deep inside a linked node's region, past the link:
+  // descend() starts at its outermost linked ancestor instead, so the ray meets what the link
+  // draws there. Found by walking up (the tree's depth) rather than kept per node, which made
+  // every link and unlink cost its whole subtree.
+  std::vector<int32_t> parent_;
+  uint32_t links_ = 0;
 
   friend class KdBuilder;
   friend class PagedWorld;  // grafts and unlinks the subtrees of paged-in store cells

@@ -298,7 +298,8 @@ class PagedWorld final : public CellGate {
   int32_t nearest_proxy(uint32_t cell) const;
   // Pixels node `node`'s error bound spans at the point of its region nearest the eye.
   double pixels_of(uint32_t node) const;
-  // `node` has a resident proxy whose error stays below the pixel error (node_pixels_).
+  // `node` has a resident proxy whose error stays below the pixel error (pixels_of(), computed
+  // where asked: a frame asks about the nodes on its rays' paths, not the whole top tree).
   bool detail_ok(int32_t node) const;
   // Makes a decoded proxy resident (or marks it failed); true when it became resident.
   bool install_proxy(ProxyDecoded& p);
@@ -323,9 +324,6 @@ class PagedWorld final : public CellGate {
   int32_t free_node_on_path(uint32_t above, uint32_t cell) const;
   // The deepest resident proxy strictly above top node `node` (-1: none).
   int32_t resident_above(uint32_t node) const;
-  // Sets the tree's cover of the nodes below `node` (the outermost linked ancestor of each), so
-  // that a rope into a linked node's region goes through the link (after node links or unlinks).
-  void cover_subtree(uint32_t node);
   // A node below top node `node` is linked.
   bool linked_below(uint32_t node) const;
   // The linked node at or above top node `node` (-1: none).
@@ -397,7 +395,6 @@ class PagedWorld final : public CellGate {
   uint64_t proxy_use_ = 0;               // stamps for proxy LRU
   uint64_t stand_ins_replaced_ = 0;
   View detail_view_;
-  std::vector<double> node_pixels_;      // per top node, pixels_of() for detail_view_
   double pixel_error_ = 0.0;
   // Frames may end before every page is in (pegged): the decoder thread decodes alone, the
   // frame's thread only places what it finished (set_detail()).

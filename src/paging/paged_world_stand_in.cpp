@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <unordered_set>
 #include <cmath>
 
 namespace frontier {
@@ -28,7 +29,6 @@ void PagedWorld::open_proxies() {
   if (proxies.empty()) return;
   const auto& nodes = model_.nodes();
   proxy_.resize(nodes.size());
-  node_pixels_.assign(nodes.size(), kInfinity);
   parent_.assign(nodes.size(), -1);
   for (size_t n = 0; n < nodes.size(); ++n) {
     if (nodes[n].is_leaf()) continue;
@@ -47,7 +47,7 @@ void PagedWorld::open_proxies() {
       leaves_under_[n] = leaves_under_[n + 1] + leaves_under_[nodes[n].child];
     }
   }
-  tree_.cover_.assign(nodes.size(), KdTree::kNone);
+  tree_.parent_ = parent_;  // descend() finds a rope target's linked ancestors through it
   stand_in_prim_.reserve(scene_.prims.capacity());
   // The root's proxy is there from the first frame: read now, through the cache.
   if (model_.proxy(0) != nullptr) {
@@ -72,7 +72,7 @@ double PagedWorld::pixels_of(uint32_t node) const {
 }
 
 bool PagedWorld::detail_ok(int32_t node) const {
-  return node >= 0 && proxy_[size_t(node)].resident && node_pixels_[size_t(node)] < pixel_error_;
+  return node >= 0 && proxy_[size_t(node)].resident && pixels_of(uint32_t(node)) < pixel_error_;
 }
 
 int32_t PagedWorld::detail_node(uint32_t cell) const {
@@ -118,7 +118,7 @@ void PagedWorld::request_proxies(uint32_t cell) {
   for (int32_t n = parent_[leaf_node_[cell]]; n >= 0; n = parent_[size_t(n)]) {
     const ProxySlot& slot = proxy_[size_t(n)];
     if (slot.resident) {
-      if (pixel_error_ > 0.0 && node_pixels_[size_t(n)] < pixel_error_) return;
+      if (pixel_error_ > 0.0 && pixels_of(uint32_t(n)) < pixel_error_) return;
       break;
     }
     if (!slot.failed && model_.proxy(uint32_t(n)) != nullptr) below = n;
@@ -324,20 +324,9 @@ bool PagedWorld::link_node(uint32_t node, uint8_t why, int32_t from) {
   slot.last_link = why;
   slot.used = ++proxy_use_;
   linked_nodes_.push_back(node);
-  cover_subtree(node);
+  ++tree_.links_;
   ++counters_.stand_ins;
   return true;
-}
-
-void PagedWorld::cover_subtree(uint32_t node) {
-  // Preorder: a node's parent comes before it, so its cover is known when the node's is set.
-  std::vector<int32_t>& cover = tree_.cover_;
-  for (uint32_t n = node + 1; n < subtree_end_[node]; ++n) {
-    const int32_t p = parent_[n];
-    cover[n] = cover[size_t(p)] != KdTree::kNone ? cover[size_t(p)]
-               : proxy_[size_t(p)].link != kLinkNone ? p
-                                                     : KdTree::kNone;
-  }
 }
 
 void PagedWorld::unlink_node(uint32_t node) {
@@ -346,7 +335,7 @@ void PagedWorld::unlink_node(uint32_t node) {
   tree_.nodes_[node] = slot.saved;
   slot.link = kLinkNone;
   std::erase(linked_nodes_, node);
-  cover_subtree(node);
+  --tree_.links_;
   ++stand_ins_replaced_;
   if (slot.borrowed >= 0) {
     remove_proxy_graft(node);  // a borrowed subtree is made for one link: it goes with it
@@ -508,10 +497,6 @@ void PagedWorld::set_detail(const View& view, double pixel_error, bool stand_in_
   set_decode_eye(view.eye);
   pixel_error_ = proxy_.empty() ? 0.0 : pixel_error;
   budgeted_ = stand_in_missing;
-  node_pixels_.assign(proxy_.size(), kInfinity);
-  if (pixel_error_ > 0.0) {
-    for (size_t n = 0; n < proxy_.size(); ++n) node_pixels_[n] = pixels_of(uint32_t(n));
-  }
 }
 
 bool PagedWorld::refine_arrived() {
@@ -605,12 +590,17 @@ StandInReport PagedWorld::stand_in_report(const CellMarks& marks) const {
   // owner: what a proxy drew is read from its marked world cells, and the store cells it drew
   // for are those under them.
   StandInReport r;
-  std::vector<uint8_t> counted(top_cells_, 0);
+  // Every grafted proxy (one linked earlier in the frame may have given way to finer ones since),
+  // in node order; found through the live grafts, not by a walk over the whole top tree.
+  std::vector<uint32_t> grafted;
+  for (const Graft& g : live_) {
+    if (g.stand_in) grafted.push_back(g.cell);
+  }
+  std::sort(grafted.begin(), grafted.end());
+  std::unordered_set<uint32_t> counted;
   std::vector<uint32_t> under;
-  for (uint32_t n = 0; n < proxy_.size(); ++n) {
-    // Every grafted proxy: one linked earlier in the frame may have given way to finer ones since.
+  for (const uint32_t n : grafted) {
     const ProxySlot& slot = proxy_[n];
-    if (slot.graft < 0) continue;
     const Graft& g = live_[size_t(slot.graft)];
     bool drew = false;
     for (uint32_t wc = g.cell0; wc < g.cell0 + g.cells && wc < marks.size(); ++wc) {
@@ -619,8 +609,7 @@ StandInReport PagedWorld::stand_in_report(const CellMarks& marks) const {
       under.clear();
       cells_under(n, tree_.cells()[wc].bounds, under);
       for (const uint32_t c : under) {
-        if (counted[c] || model_.cells()[c].page == StoreCell::kNoPage) continue;
-        counted[c] = 1;
+        if (model_.cells()[c].page == StoreCell::kNoPage || !counted.insert(c).second) continue;
         if (slot.last_link == kLinkDetail) {
           ++r.detail_cells;
         } else if (slot_[c] < 0) {

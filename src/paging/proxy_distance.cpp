@@ -75,6 +75,59 @@ double point_triangle_distance(const Vec3& p, const Vec3& a, const Vec3& b, cons
   return glm::length(p - closest_on_triangle(p, a, b, c));
 }
 
+namespace {
+
+// An upper bound on the largest distance from a point of the triangle `corners` to s ∪ t, two
+// triangles with an edge in common; +infinity if they have none. The plane through that edge
+// bisecting their dihedral angle splits `corners` in two convex polygons; on each, the distance to
+// its side's triangle is convex and peaks at a polygon vertex (a corner or an edge's crossing).
+double straddling_bound(const Vec3 (&corners)[3], const Triangle& s, const Triangle& t) {
+  const Vec3 sv[3] = {s.v0, s.v1, s.v2}, tv[3] = {t.v0, t.v1, t.v2};
+  int shared_s[2], shared_t[2], count = 0;
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) {
+      if (sv[i] == tv[j] && count < 2) {
+        shared_s[count] = i;
+        shared_t[count] = j;
+        ++count;
+      }
+    }
+  }
+  if (count != 2) return kInfinity;
+  const Vec3 e0 = sv[shared_s[0]], e = sv[shared_s[1]] - e0;
+  const double e2 = glm::dot(e, e);
+  if (!(e2 > 0.0)) return kInfinity;
+  // Unit vectors in each triangle's plane, perpendicular to the edge, pointing into it.
+  auto inward = [&](const Vec3& apex) {
+    const Vec3 d = apex - e0;
+    const Vec3 u = d - e * (glm::dot(d, e) / e2);
+    const double l = glm::length(u);
+    return l > 0.0 ? u / l : Vec3(0.0);
+  };
+  const Vec3 us = inward(sv[3 - shared_s[0] - shared_s[1]]);
+  const Vec3 ut = inward(tv[3 - shared_t[0] - shared_t[1]]);
+  const Vec3 n = us - ut;  // s's side of the bisector is where dot(p - e0, n) >= 0
+  if (!(glm::dot(n, n) > 1e-24)) return kInfinity;  // folded flat onto each other
+  double side[3];
+  for (int k = 0; k < 3; ++k) side[k] = glm::dot(corners[k] - e0, n);
+  double bound = 0.0;
+  auto measure = [&](const Vec3& p, bool on_s, bool on_t) {
+    if (on_s) bound = std::max(bound, point_triangle_distance(p, s.v0, s.v1, s.v2));
+    if (on_t) bound = std::max(bound, point_triangle_distance(p, t.v0, t.v1, t.v2));
+  };
+  for (int k = 0; k < 3; ++k) {
+    measure(corners[k], side[k] >= 0.0, side[k] <= 0.0);
+    const int l = (k + 1) % 3;
+    if ((side[k] < 0.0 && side[l] > 0.0) || (side[k] > 0.0 && side[l] < 0.0)) {
+      const double f = side[k] / (side[k] - side[l]);
+      measure(corners[k] + (corners[l] - corners[k]) * f, true, true);
+    }
+  }
+  return bound;
+}
+
+}  // namespace
+
 TriangleBvh::TriangleBvh(std::span<const Vec3> positions, std::span<const uint32_t> indices) {
   triangles_.reserve(indices.size() / 3);
   std::vector<Vec3> centroids;
@@ -206,6 +259,14 @@ double TriangleBvh::farthest_on_triangle(const Vec3 (&corners)[3], const Corner 
     double m = 0.0;
     for (const Vec3& p : corners) m = std::max(m, point_triangle_distance(p, t.v0, t.v1, t.v2));
     best = std::min(best, m);
+  }
+  // Corners nearest to two triangles with an edge in common (abc straddles a crease or a flat
+  // mesh's edge): each side of the plane bisecting their dihedral angle is bounded by its own.
+  for (int i = 0; i < 3 && best > std::max(floor, 1.05 * lower + slack); ++i) {
+    for (int j = i + 1; j < 3; ++j) {
+      if (near[i].triangle == near[j].triangle) continue;
+      best = std::min(best, straddling_bound(corners, triangles_[near[i].triangle], triangles_[near[j].triangle]));
+    }
   }
   if (depth == 0 || best <= std::max(floor, 1.05 * lower + slack)) return best;
   const Vec3 mid[3] = {0.5 * (a + b), 0.5 * (b + c), 0.5 * (c + a)};
