@@ -243,10 +243,9 @@ TEST(WalkthroughStandIn, MissingCellsBelowFinerLinksBorrowTheirAncestorsProxy) {
   size_t borrowed = 0, frames = 0;
   // Short frames (pages still on their way), walks afresh until one borrowed (at most 30 s).
   const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-  std::vector<double> budgets;
-  for (int k = 0; k < 12; ++k) budgets.insert(budgets.end(), {1.0, 2.0, 3.0, 5.0});
-  for (const double ms : budgets) {
-    if (borrowed > 0 || std::chrono::steady_clock::now() > give_up) break;
+  const double budgets[] = {1.0, 2.0, 3.0, 5.0};
+  for (size_t k = 0; borrowed == 0 && std::chrono::steady_clock::now() < give_up; ++k) {
+    const double ms = budgets[k % std::size(budgets)];
     WalkOptions o = options(1.0);
     o.width = 160;
     o.height = 120;

@@ -168,10 +168,19 @@ bool PagedWorld::unlink_oldest(uint64_t target) {
   return true;
 }
 
+bool PagedWorld::fits(uint64_t bytes) {
+  const uint64_t budget = lru_.budget();
+  const uint64_t others = lru_.bytes() + garbage_bytes_ + bytes;
+  if (others + proxy_bytes_ <= budget) return true;
+  // Proxies nothing draws now give way to cells (down to their share).
+  shed_proxies(std::max(budget / kProxyShareDivisor, budget - std::min(budget, others)));
+  return others + proxy_bytes_ <= budget;
+}
+
 bool PagedWorld::evict_for(uint64_t bytes, const std::vector<uint32_t>& keep) {
   const uint64_t budget = lru_.budget();
   if (bytes > budget) return false;
-  if (lru_.bytes() + held_besides_cells() + bytes <= budget) return true;
+  if (fits(bytes)) return true;
   if (bytes + proxy_bytes_ > budget) return false;
   const uint64_t target = budget - bytes - proxy_bytes_;
   if (!unlink_oldest(target)) {
@@ -230,8 +239,7 @@ void PagedWorld::place(Decoded& d, bool evict, SyncPass& pass) {
     missing_[d.cell] = 0;
     ++counters_.page_errors;
     pass.changed = true;
-  } else if (lru_.bytes() + held_besides_cells() + d.bytes <= lru_.budget() ||
-             (evict && evict_for(d.bytes, pass.grafted))) {
+  } else if (fits(d.bytes) || (evict && evict_for(d.bytes, pass.grafted))) {
     graft(d);
     pass.grafted.push_back(d.cell);
     pass.changed = true;
@@ -475,10 +483,10 @@ std::vector<uint32_t> PagedWorld::image_cells(const CellMarks& marks) const {
 
 uint64_t PagedWorld::end_frame(const CellMarks& marks) {
   note_touched(marks);
-  if (!proxy_.empty()) note_drawn(marks);
+  const uint64_t drawn_proxies = proxy_.empty() ? 0 : note_drawn(marks);
   touched_bytes_ = lru_.touched_bytes();
   const std::vector<uint32_t> cells = image_cells(CellMarks());
-  working_set_bytes_ = 0;
+  working_set_bytes_ = drawn_proxies;
   for (const uint32_t c : cells) working_set_bytes_ += decoded_size_[c];
   return cells.size();
 }

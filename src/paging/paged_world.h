@@ -50,7 +50,10 @@
 //            reached in the last image are unlinked.
 // The root's proxy is read when the world opens; other proxies are requested (through the page
 // cache) one level at a time and decoded in sync(). Decoded proxies and their subtrees are
-// charged to the decoded share (at most a sixteenth of it, least recently used dropped first).
+// charged to the decoded share: they may take what the cells the last frame touched leave of it
+// but a quarter (kept for the cells the next frame pages in), and at least a sixteenth; beyond
+// that the least recently drawn are dropped first (a far view is mostly proxies, a room mostly
+// cells).
 // With pixel_error 0 and no missing stand-ins (sync paging, or frames run to completion)
 // nothing stands in: the exact renderer.
 //
@@ -83,6 +86,8 @@
 #include <iterator>
 #include <memory>
 #include <mutex>
+#include <queue>
+#include <utility>
 #include <vector>
 
 namespace frontier {
@@ -176,7 +181,8 @@ class PagedWorld final : public CellGate {
   // Store cells the current image touched: in its earlier passes, paged in or touched in this
   // pass, and marked in `marks` (each grafted subtree counts as its store cell). Ascending.
   std::vector<uint32_t> image_cells(const CellMarks& marks) const;
-  // Decoded bytes of the image's cells as of the last end_frame() (cells never decoded: 0).
+  // Decoded bytes of the image's cells as of the last end_frame() (cells never decoded: 0), and
+  // of the proxies it drew.
   uint64_t working_set_bytes() const { return working_set_bytes_; }
   // The smallest budget_bytes whose decoded share holds `decoded_bytes` (the inverse of the
   // split between compressed pages and decoded cells), rounded up to a MiB.
@@ -244,6 +250,8 @@ class PagedWorld final : public CellGate {
   std::vector<uint32_t> take_ready(bool take = true);
   bool hopeless(uint32_t cell) const;
   void place(Decoded& d, bool evict, SyncPass& pass);
+  // `bytes` more fit in the decoded share, once proxies nothing draws now made room.
+  bool fits(uint64_t bytes);
   // Unlinks live cells other than `keep` (LRU first) and compacts until `bytes` more fit.
   bool evict_for(uint64_t bytes, const std::vector<uint32_t>& keep);
   // Unlinks cells not touched in this frame, LRU first, until at most `target` decoded bytes
@@ -272,6 +280,11 @@ class PagedWorld final : public CellGate {
   std::vector<uint32_t> pick_ready_proxies(size_t count);
   // Puts `node` back on proxy_wanted_ and asks for its page again (it left the cache).
   void requeue_proxy(uint32_t node);
+  // How a proxy's triangles get their tree over node `node`'s region: the cells' refine options
+  // with leaves of up to kProxyCellPrims (a proxy spans few pixels: its rays are cheap, the
+  // memory of a finer tree's references is not).
+  static constexpr uint32_t kProxyCellPrims = 64;
+  KdBuildOptions proxy_build_options(uint32_t node) const;
   // Decodes node `node`'s proxy page and builds its tree (any thread: reads the model only).
   // False when the page left the cache meanwhile.
   bool decode_proxy(uint32_t node, ProxyDecoded& out) const;
@@ -306,6 +319,18 @@ class PagedWorld final : public CellGate {
   // Decodes the proxies whose pages arrived; true when one did.
   bool load_proxies(std::chrono::steady_clock::time_point deadline);
   void drop_proxies_over_budget();
+  // The decoded share a world's proxies may always take (proxy_cap(): more when the cells the
+  // frames touch leave more; least recently used beyond it go first; the root's stays).
+  static constexpr uint64_t kProxyShareDivisor = 16;
+  // Stamps a resident proxy as just used (its place in the proxy LRU).
+  void stamp_proxy(uint32_t node);
+  // Drops resident proxies no node is linked to (least recently used first, never the root's)
+  // until proxies take at most `target` bytes or only linked ones are left: cells that need the
+  // room come first.
+  void shed_proxies(uint64_t target);
+  // What the decoded share leaves proxies: all but the cells the last frame touched and a
+  // quarter for the cells the next one pages in, and at least a sixteenth.
+  uint64_t proxy_cap() const;
   // Wanted cells get the node that draws them linked: for detail (they leave the wanted list),
   // or, in frames that stand in for missing cells, while their pages are missing. True when the
   // tree changed.
@@ -339,8 +364,9 @@ class PagedWorld final : public CellGate {
   // Subtrees of at most this many cells have their pages wanted when their node is linked for
   // missing pages (rays never reach them while it is).
   static constexpr uint32_t kRefineCells = 8;
-  // Records which linked nodes the image's rays reached (end_frame()).
-  void note_drawn(const CellMarks& marks);
+  // Records which linked nodes the image's rays reached (end_frame()); returns the bytes of the
+  // proxies they drew (part of the image's working set).
+  uint64_t note_drawn(const CellMarks& marks);
   // Grafts node `node`'s proxy (or ancestor `from`'s) as a subtree over its region (once); false
   // when it does not fit.
   bool graft_proxy(uint32_t node, int32_t from = -1);
@@ -393,6 +419,11 @@ class PagedWorld final : public CellGate {
   std::vector<uint32_t> proxy_wanted_;   // nodes whose proxy pages were requested, not decoded
   uint64_t proxy_bytes_ = 0;
   uint64_t proxy_use_ = 0;               // stamps for proxy LRU
+  // Resident proxies by their stamp, oldest on top; entries whose stamp changed since are stale
+  // (skipped when popped, dropped when the heap outgrows the resident proxies).
+  std::priority_queue<std::pair<uint64_t, uint32_t>, std::vector<std::pair<uint64_t, uint32_t>>,
+                      std::greater<>> proxy_lru_;
+  size_t proxies_resident_ = 0;
   uint64_t stand_ins_replaced_ = 0;
   View detail_view_;
   double pixel_error_ = 0.0;

@@ -65,7 +65,8 @@ struct PagedWorld::ProxyDecoded {
 struct PagedWorld::ProxySlot {
   struct Data {
     Scene scene;
-    KdTree tree;  // its triangles' tree over the node's region (built by decode_proxy)
+    KdTree tree;  // its triangles' tree over the node's region (built by decode_proxy; moved
+                  // into the graft, rebuilt if the proxy is grafted again)
   };
   std::unique_ptr<Data> data;  // while resident
   uint64_t bytes = 0;
@@ -79,6 +80,8 @@ struct PagedWorld::ProxySlot {
   bool resident = false;
   bool failed = false;
   bool drawn = false;        // linked, and its subtree was reached by the last image's rays
+                             // (or linked during it: judged by the next image)
+  uint64_t linked_image = 0;  // the image (PagedWorld::image_) during which it was linked last
 };
 
 // The decoder thread's shared state (paged_world_decoder.cpp). Lock order: wanted_mutex_, then

@@ -14,10 +14,6 @@ namespace frontier {
 
 
 namespace {
-
-// The decoded share a world's proxies may take at most (least recently used beyond it go first;
-// the root's stays).
-constexpr uint64_t kProxyShareDivisor = 16;
 // Proxies decoded per sync() even past its deadline (progress).
 constexpr size_t kMinStandInWork = 8;
 
@@ -161,10 +157,15 @@ bool PagedWorld::decode_proxy(uint32_t node, ProxyDecoded& out) const {
   out.status = model_.decode_proxy_page(node, pin->codec(), pin->bytes(), out.scene);
   pin->reset();
   if (!out.status) return true;
-  KdBuildOptions options = cell_build_;
-  options.root = model_.node_region(node);
-  out.tree = KdTree::build(out.scene, options);
+  out.tree = KdTree::build(out.scene, proxy_build_options(node));
   return true;
+}
+
+KdBuildOptions PagedWorld::proxy_build_options(uint32_t node) const {
+  KdBuildOptions options = cell_build_;
+  options.max_cell_prims = std::max(options.max_cell_prims, kProxyCellPrims);
+  options.root = model_.node_region(node);
+  return options;
 }
 
 bool PagedWorld::install_proxy(ProxyDecoded& p) {
@@ -186,7 +187,8 @@ bool PagedWorld::install_proxy(ProxyDecoded& p) {
   if (relink) release_proxy_graft(p.node);
   slot.bytes += own;
   slot.resident = true;
-  slot.used = ++proxy_use_;
+  ++proxies_resident_;
+  stamp_proxy(p.node);
   proxy_bytes_ += own;
   if (relink) link_node(p.node, kLinkMissing);
   ++counters_.proxies_loaded;
@@ -225,15 +227,61 @@ bool PagedWorld::load_proxies(std::chrono::steady_clock::time_point deadline) {
   return any;
 }
 
-void PagedWorld::drop_proxies_over_budget() {
-  const uint64_t cap = std::max<uint64_t>(lru_.budget() / kProxyShareDivisor, 1);
-  while (proxy_bytes_ > cap) {
-    int32_t victim = -1;
-    for (size_t n = 1; n < proxy_.size(); ++n) {
-      if (proxy_[n].resident && (victim < 0 || proxy_[n].used < proxy_[size_t(victim)].used)) victim = int32_t(n);
+void PagedWorld::stamp_proxy(uint32_t node) {
+  proxy_[node].used = ++proxy_use_;
+  proxy_lru_.emplace(proxy_[node].used, node);
+  if (proxy_lru_.size() > 4 * proxies_resident_ + 64) {
+    // Mostly stale entries: rebuild from the resident proxies' stamps.
+    std::vector<std::pair<uint64_t, uint32_t>> live;
+    live.reserve(proxies_resident_);
+    while (!proxy_lru_.empty()) {
+      const auto [used, n] = proxy_lru_.top();
+      proxy_lru_.pop();
+      if (proxy_[n].resident && proxy_[n].used == used) live.emplace_back(used, n);
     }
-    if (victim < 0) return;
-    drop_proxy(uint32_t(victim));  // its cells are missing again
+    proxy_lru_ = decltype(proxy_lru_)(std::greater<>(), std::move(live));
+  }
+}
+
+uint64_t PagedWorld::proxy_cap() const {
+  const uint64_t budget = lru_.budget();
+  const uint64_t floor = std::max<uint64_t>(budget / kProxyShareDivisor, 1);
+  const uint64_t taken = touched_bytes_ + garbage_bytes_ + budget / 4;
+  return taken < budget ? std::max(floor, budget - taken) : floor;
+}
+
+void PagedWorld::shed_proxies(uint64_t target) {
+  if (proxy_bytes_ <= target) return;
+  std::vector<uint32_t> donors;  // proxies borrowed by linked nodes: drawing now too
+  for (const uint32_t l : linked_nodes_) {
+    if (proxy_[l].borrowed >= 0) donors.push_back(uint32_t(proxy_[l].borrowed));
+  }
+  std::sort(donors.begin(), donors.end());
+  std::vector<std::pair<uint64_t, uint32_t>> kept;
+  while (proxy_bytes_ > target && !proxy_lru_.empty()) {
+    const auto [used, n] = proxy_lru_.top();
+    proxy_lru_.pop();
+    if (!proxy_[n].resident || proxy_[n].used != used) continue;  // stale
+    if (n == 0 || proxy_[n].link != kLinkNone || std::binary_search(donors.begin(), donors.end(), n)) {
+      kept.emplace_back(used, n);  // the root's, or drawing now
+      continue;
+    }
+    drop_proxy(n);
+  }
+  for (const auto& e : kept) proxy_lru_.push(e);
+}
+
+void PagedWorld::drop_proxies_over_budget() {
+  const uint64_t cap = proxy_cap();
+  while (proxy_bytes_ > cap && !proxy_lru_.empty()) {
+    const auto [used, n] = proxy_lru_.top();
+    proxy_lru_.pop();
+    if (n == 0) {
+      stamp_proxy(0);  // the root's stays
+      continue;
+    }
+    if (!proxy_[n].resident || proxy_[n].used != used) continue;  // stale
+    drop_proxy(n);  // its cells are missing again
   }
 }
 
@@ -261,21 +309,26 @@ bool PagedWorld::graft_proxy(uint32_t node, int32_t from) {
   ProxySlot& slot = proxy_[node];
   if (slot.graft >= 0) return true;
   const uint32_t source = from >= 0 ? uint32_t(from) : node;
-  const ProxySlot::Data& data = *proxy_[source].data;
+  ProxySlot::Data& data = *proxy_[source].data;
   Decoded d;
   d.cell = node;
   d.stand_in = int32_t(node);
   d.scene = data.scene;
-  if (source == node) {
-    d.tree = data.tree;  // built when it was decoded (kept: the graft may be released and made again)
-  } else {
-    // An ancestor's triangles over this node's region (the builder clips them to it).
-    KdBuildOptions options = cell_build_;
-    options.root = model_.node_region(node);
-    d.tree = KdTree::build(d.scene, options);
-  }
-  d.bytes = d.scene.prims.size() * (sizeof(PrimRef) + sizeof(Triangle)) + tree_bytes(d.tree, kPerCellOverhead);
+  // Its own triangles' tree, built when it was decoded, goes into the graft (the triangles stay:
+  // a borrowed stand-in below may clip them, a later graft rebuilds the tree); an ancestor's
+  // triangles over this node's region get a tree of their own (the builder clips them to it).
+  const bool own_tree = source == node && !data.tree.nodes().empty();
+  if (!own_tree) d.tree = KdTree::build(d.scene, proxy_build_options(node));
+  const uint64_t tree_size = tree_bytes(own_tree ? data.tree : d.tree, kPerCellOverhead);
+  d.bytes = d.scene.prims.size() * (sizeof(PrimRef) + sizeof(Triangle)) + tree_size;
   if (lru_.bytes() + held_besides_cells() + d.bytes > lru_.budget()) return false;
+  if (own_tree) {
+    const uint64_t held = tree_bytes(data.tree, 0);
+    d.tree = std::move(data.tree);
+    data.tree = KdTree();
+    proxy_[source].bytes -= held;
+    proxy_bytes_ -= held;
+  }
   const Graft g = append(d, node_ropes(node), kNoOwner);
   slot.graft = static_cast<int32_t>(live_.size());
   live_.push_back(g);
@@ -322,7 +375,11 @@ bool PagedWorld::link_node(uint32_t node, uint8_t why, int32_t from) {
   n.child = live_[size_t(slot.graft)].node0;
   slot.link = why;
   slot.last_link = why;
-  slot.used = ++proxy_use_;
+  // Linked for what the rays wanted: it stays until an image's rays could have reached it (the
+  // next review judges it by the image after this one, not by rays cast before it existed).
+  slot.drawn = true;
+  slot.linked_image = image_;
+  stamp_proxy(node);
   linked_nodes_.push_back(node);
   ++tree_.links_;
   ++counters_.stand_ins;
@@ -435,6 +492,7 @@ void PagedWorld::drop_proxy(uint32_t node) {
     if (proxy_[n].borrowed == int32_t(node)) unlink_node(n);  // drew this proxy's triangles
   }
   proxy_bytes_ -= proxy_[node].bytes;
+  if (proxy_[node].resident) --proxies_resident_;
   proxy_[node] = ProxySlot();
 }
 
@@ -516,14 +574,26 @@ bool PagedWorld::refine_arrived() {
   return changed;
 }
 
-void PagedWorld::note_drawn(const CellMarks& marks) {
+uint64_t PagedWorld::note_drawn(const CellMarks& marks) {
+  std::vector<uint32_t> used;  // proxies the image drew: linked nodes' own, or those they borrow
   for (const uint32_t n : linked_nodes_) {
     const ProxySlot& slot = proxy_[n];
     const Graft& g = live_[size_t(slot.graft)];
     bool drew = false;
     for (uint32_t wc = g.cell0; wc < g.cell0 + g.cells && wc < marks.size() && !drew; ++wc) drew = marks.marked(int32_t(wc));
-    proxy_[n].drawn = drew;
+    proxy_[n].drawn = drew || slot.linked_image == image_;
+    if (!drew) continue;
+    used.push_back(n);
+    if (slot.borrowed >= 0) used.push_back(uint32_t(slot.borrowed));
   }
+  std::sort(used.begin(), used.end());
+  used.erase(std::unique(used.begin(), used.end()), used.end());
+  uint64_t bytes = 0;
+  for (const uint32_t n : used) {
+    stamp_proxy(n);  // what the image drew is used: kept before what it did not
+    bytes += proxy_[n].bytes;
+  }
+  return bytes;
 }
 
 void PagedWorld::review_stand_ins() {

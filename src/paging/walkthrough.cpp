@@ -21,6 +21,10 @@ constexpr int kPrefetchFrames = 4;
 constexpr double kPassFill = 0.75;
 // Share of a pegged frame time that paging in (on the frame's thread) may take at a time.
 constexpr double kPageInShare = 0.25;
+// Share of a pegged frame time a slice of rays runs at most in frames that stand in for missing
+// cells: between slices sync() links proxies for the cells the rays wanted and the work parked
+// on them resumes through the links, within the frame (a slice to the deadline left it parked).
+constexpr double kStandInSliceShare = 0.125;
 
 bool same_camera(const Camera& a, const Camera& b) {
   return a.eye == b.eye && a.look_at == b.look_at && a.up == b.up && a.vfov_deg == b.vfov_deg;
@@ -434,7 +438,10 @@ bool Walkthrough::out_of_time(FramePlan& plan) const {
 void Walkthrough::run_slice(const FramePlan& plan, Counters& counters) {
   const FrameBudget& budget = options_.budget;
   FrameBudget slice;
-  if (budget.ms > 0.0) slice.ms = std::max(0.01, std::chrono::duration<double, std::milli>(plan.deadline - Clock::now()).count());
+  if (budget.ms > 0.0) {
+    slice.ms = std::max(0.01, std::chrono::duration<double, std::milli>(plan.deadline - Clock::now()).count());
+    if (world_->has_proxies() && !plan.wait_for_all) slice.ms = std::min(slice.ms, kStandInSliceShare * budget.ms);
+  }
   if (budget.samples > 0) slice.samples = budget.samples - counters.samples;
   if (plan.overtime) slice.samples = plan.floor_samples - image_samples_;
   const uint64_t before = counters.samples;
