@@ -152,6 +152,51 @@ TEST(WalkthroughStandIn, AHugePixelErrorDrawsTheRootProxyAndReadsNoCellPage) {
   }
 }
 
+// A pixel error some inner nodes' proxies meet: a frame run to completion reads a cell's page
+// only where no ancestor's proxy is fine enough (its bound projects to T pixels or more at the
+// point of its region nearest the eye) — a qualifying proxy is read instead, whether or not it
+// was in memory when the rays reached its cells — and fewer pages than the exact frame.
+TEST(WalkthroughStandIn, PagesAreReadOnlyWhereNoAncestorsProxyIsFineEnough) {
+  const double T = 4.0;
+  auto walk = Walkthrough::open(terrain().proxies, options(T));
+  auto exact = Walkthrough::open(terrain().proxies, options(0.0));
+  ASSERT_TRUE(walk.is_ok());
+  ASSERT_TRUE(exact.is_ok());
+  const StoreModel& model = (*walk)->model();
+  const auto& nodes = model.nodes();
+  std::vector<int32_t> parent(nodes.size(), -1);
+  std::vector<uint32_t> leaf_of(model.cells().size(), 0);
+  for (uint32_t n = 0; n < nodes.size(); ++n) {
+    if (nodes[n].is_leaf()) {
+      leaf_of[nodes[n].child] = n;
+    } else {
+      parent[n + 1] = parent[nodes[n].child] = int32_t(n);
+    }
+  }
+  const Camera cam = orbit().front();
+  const View view(cam, 64, 48);
+  const auto pixels = [&](uint32_t n) {
+    const double d = distance_to_box(view.eye, model.node_region(n));
+    return model.proxies()[n].error * 48.0 / (2.0 * view.half_h * d);
+  };
+  const FrameReport r = (*walk)->frame(cam);
+  const FrameReport e = (*exact)->frame(cam);
+  SCOPED_TRACE(r.to_json().dump());
+  EXPECT_TRUE(r.complete);
+  EXPECT_GT(r.proxy_nodes, 1u) << "no inner proxy drew: T checks nothing here";
+  size_t resident = 0;
+  for (uint32_t c = 0; c < model.cells().size(); ++c) {
+    if (!(*walk)->world().resident(c)) continue;
+    ++resident;
+    for (int32_t n = parent[leaf_of[c]]; n >= 0; n = parent[size_t(n)]) {
+      if (model.proxy(uint32_t(n)) == nullptr) continue;
+      EXPECT_GE(pixels(uint32_t(n)), T) << "cell " << c << " was read though node " << n << "'s proxy is fine enough";
+    }
+  }
+  EXPECT_LT(resident, e.resident_cells);
+  EXPECT_GT(e.resident_cells, 0u);
+}
+
 // A camera that stops after a frame drawn by proxies refines to the exact image: the next frame
 // of the same camera renders at pixel error 0, equal to brute force, with no proxy pixel left.
 TEST(WalkthroughStandIn, AStillCameraRefinesToTheExactImage) {

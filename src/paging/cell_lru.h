@@ -54,6 +54,8 @@ class CellLru {
     if (stamp(cell) && lru_.contains(cell)) lru_.pin(cell);
   }
   bool touched(uint32_t cell) const { return stamp_[cell] == frame_; }
+  // The last frame that touched `cell` (0: none).
+  uint64_t last_touched(uint32_t cell) const { return stamp_[cell]; }
   // The cells touched in the current frame, ascending.
   const std::vector<uint32_t>& touched_cells() const {
     if (!sorted_) {

@@ -116,7 +116,12 @@ void PagedWorld::want(int32_t cell) {
   wanted_.push_back(static_cast<uint32_t>(c));
   if (!proxy_.empty()) {
     request_proxies(static_cast<uint32_t>(c));
-    if (detail_node(static_cast<uint32_t>(c)) >= 0) return;  // a proxy will draw it (sync())
+    // A cell whose ancestor's proxy is fine enough is drawn by that proxy (sync()): its page is
+    // not read, the proxy is asked for at once (not level by level).
+    if (const int32_t target = detail_target(static_cast<uint32_t>(c)); target >= 0) {
+      request_proxy(uint32_t(target));
+      return;
+    }
   }
   cache_->request(model_.cells()[c].page);
 }
@@ -348,7 +353,7 @@ double PagedWorld::wait_for_pages(std::chrono::steady_clock::time_point deadline
         const uint64_t page = model_.cells()[wanted_[k]].page;
         if (cache_->ready(page) || cache_->failed(page)) {
           any = decodes_here;
-        } else if (proxy_.empty() || detail_node(wanted_[k]) < 0) {
+        } else if (proxy_.empty() || detail_target(wanted_[k]) < 0) {
           // Evicted unread (the page cache made room for later pages), or put back by the
           // decoder after its page went: asked for again, else nothing would bring it (a cell
           // a proxy draws for detail is not read, as in want()).
@@ -516,15 +521,25 @@ void PagedWorld::begin_frame(CellMarks& marks) {
   ++image_;
   earlier_cells_.clear();
   forget_dropped();
-  // Keep a quarter of the decoded share free for the cells this frame pages in: when live
-  // cells and garbage fill more than three quarters, unlink the least recently touched down
-  // to half and compact. (No cell is touched in the new frame yet: all may go.)
+  // Keep a quarter of the decoded share free for what this frame pages in: when live cells,
+  // proxies and garbage fill more than three quarters, make room down to half — first the cells
+  // the last frame did not touch (least recently touched first), then the proxies the last image
+  // did not draw, and only then, down to three quarters, the last frame's own cells (smallest on
+  // screen first: no cell is touched in the new frame yet) — and compact.
   if (!proxy_.empty()) review_stand_ins();
   const uint64_t budget = lru_.budget();
-  if (lru_.bytes() + held_besides_cells() > budget / 4 * 3) {
-    unlink_oldest(budget / 2 > proxy_bytes_ ? budget / 2 - proxy_bytes_ : 0);
+  const auto held = [&] { return lru_.bytes() + held_besides_cells(); };
+  if (held() > budget / 4 * 3) {
+    while (held() > budget / 2) {
+      const std::optional<uint32_t> victim = lru_.oldest();
+      if (!victim || lru_.last_touched(*victim) + 1 >= lru_.frame()) break;
+      unlink(*victim);
+    }
+    if (held() > budget / 2) shed_proxies(proxy_bytes_ - std::min(proxy_bytes_, held() - budget / 2));
+    const uint64_t others = held() - lru_.bytes();
+    if (held() > budget / 4 * 3) unlink_oldest(budget / 4 * 3 > others ? budget / 4 * 3 - others : 0);
   }
-  if (garbage_bytes_ > 0 && lru_.bytes() + held_besides_cells() > budget / 4 * 3) compact();
+  if (garbage_bytes_ > 0 && held() > budget / 4 * 3) compact();
   marks.resize(tree_.cells_.size());
 }
 

@@ -47,7 +47,7 @@
 //            is refined (refine()): its children's proxies are requested, the pages of a node
 //            of a few cells wanted, and once both children can be drawn without it (a page, a
 //            proxy, or both of their children so) it is replaced by them. Linked nodes no ray
-//            reached in the last image are unlinked.
+//            reached in the last kLinkKeepImages images are unlinked.
 // The root's proxy is read when the world opens; other proxies are requested (through the page
 // cache) one level at a time and decoded in sync(). Decoded proxies and their subtrees are
 // charged to the decoded share: they may take what the cells the last frame touched leave of it
@@ -305,6 +305,12 @@ class PagedWorld final : public CellGate {
   void open_proxies();
   // Requests the proxy pages of `cell`'s ancestors up to the nearest one resident (wanted_mutex_ held).
   void request_proxies(uint32_t cell);
+  // The highest ancestor of `cell` whose proxy (resident or not, not failed) is fine enough for
+  // the pixel error: the one to read instead of the cell's page (-1: none qualifies).
+  int32_t detail_target(uint32_t cell) const;
+  // Asks for top node `node`'s proxy page unless it is resident, asked for or failed
+  // (wanted_mutex_ held).
+  void request_proxy(uint32_t node);
   // The node whose proxy draws `cell` for detail (-1: none qualifies).
   int32_t detail_node(uint32_t cell) const;
   // The deepest ancestor of `cell` with a resident proxy (-1: none).
@@ -364,6 +370,10 @@ class PagedWorld final : public CellGate {
   // Subtrees of at most this many cells have their pages wanted when their node is linked for
   // missing pages (rays never reach them while it is).
   static constexpr uint32_t kRefineCells = 8;
+  // A linked node no image's rays reached for this many images is unlinked (out of view). Not
+  // after one: a pegged image reaches part of the view, and a link the next one needs would
+  // cost its rays a round trip (parked, wanted, linked again).
+  static constexpr uint64_t kLinkKeepImages = 8;
   // Records which linked nodes the image's rays reached (end_frame()); returns the bytes of the
   // proxies they drew (part of the image's working set).
   uint64_t note_drawn(const CellMarks& marks);

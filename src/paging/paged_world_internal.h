@@ -79,9 +79,8 @@ struct PagedWorld::ProxySlot {
   bool requested = false;
   bool resident = false;
   bool failed = false;
-  bool drawn = false;        // linked, and its subtree was reached by the last image's rays
-                             // (or linked during it: judged by the next image)
-  uint64_t linked_image = 0;  // the image (PagedWorld::image_) during which it was linked last
+  uint64_t last_drawn = 0;   // linked: the last image (PagedWorld::image_) whose rays reached
+                             // its subtree, or during which it was linked
 };
 
 // The decoder thread's shared state (paged_world_decoder.cpp). Lock order: wanted_mutex_, then

@@ -80,6 +80,28 @@ int32_t PagedWorld::detail_node(uint32_t cell) const {
   return best;
 }
 
+int32_t PagedWorld::detail_target(uint32_t cell) const {
+  if (pixel_error_ <= 0.0) return -1;
+  // A node's bound and region contain its children's: pixels_of() shrinks down a path, so the
+  // nodes that qualify are the path's lower part, and the highest of them is the last found.
+  int32_t best = -1;
+  for (int32_t n = parent_[leaf_node_[cell]]; n >= 0; n = parent_[size_t(n)]) {
+    const ProxySlot& slot = proxy_[size_t(n)];
+    if (slot.failed || model_.proxy(uint32_t(n)) == nullptr) continue;
+    if (!(pixels_of(uint32_t(n)) < pixel_error_)) break;
+    best = n;
+  }
+  return best;
+}
+
+void PagedWorld::request_proxy(uint32_t node) {
+  ProxySlot& slot = proxy_[node];
+  if (slot.resident || slot.requested || slot.failed || model_.proxy(node) == nullptr) return;
+  slot.requested = true;
+  proxy_wanted_.push_back(node);
+  cache_->request(model_.proxy(node)->page);
+}
+
 int32_t PagedWorld::borrowed_from(uint32_t node) const {
   return node < proxy_.size() ? proxy_[node].borrowed : -1;
 }
@@ -119,10 +141,7 @@ void PagedWorld::request_proxies(uint32_t cell) {
     }
     if (!slot.failed && model_.proxy(uint32_t(n)) != nullptr) below = n;
   }
-  if (below < 0 || proxy_[size_t(below)].requested) return;
-  proxy_[size_t(below)].requested = true;
-  proxy_wanted_.push_back(uint32_t(below));
-  cache_->request(model_.proxy(uint32_t(below))->page);
+  if (below >= 0) request_proxy(uint32_t(below));
 }
 
 std::vector<uint32_t> PagedWorld::pick_ready_proxies(size_t count) {
@@ -375,10 +394,9 @@ bool PagedWorld::link_node(uint32_t node, uint8_t why, int32_t from) {
   n.child = live_[size_t(slot.graft)].node0;
   slot.link = why;
   slot.last_link = why;
-  // Linked for what the rays wanted: it stays until an image's rays could have reached it (the
-  // next review judges it by the image after this one, not by rays cast before it existed).
-  slot.drawn = true;
-  slot.linked_image = image_;
+  // Linked for what the rays wanted: judged by the images after this one, not by rays cast
+  // before it existed.
+  slot.last_drawn = image_;
   stamp_proxy(node);
   linked_nodes_.push_back(node);
   ++tree_.links_;
@@ -442,12 +460,9 @@ void PagedWorld::refine(uint32_t node) {
   // Coarse to fine: the proxies of its children and grandchildren (two levels a round trip),
   // and the pages of a subtree of a few cells.
   const auto request = [&](uint32_t x) {
-    ProxySlot& slot = proxy_[x];
-    if (nodes[x].is_leaf() || slot.resident || slot.requested || slot.failed || model_.proxy(x) == nullptr) return;
+    if (nodes[x].is_leaf()) return;
     std::lock_guard<std::mutex> lock(wanted_mutex_);
-    slot.requested = true;
-    proxy_wanted_.push_back(x);
-    cache_->request(model_.proxy(x)->page);
+    request_proxy(x);
   };
   if (proxy_[node].borrowed >= 0) request(node);  // drawn by an ancestor's: its own first
   for (const uint32_t x : {node + 1, nodes[node].child}) {
@@ -581,8 +596,8 @@ uint64_t PagedWorld::note_drawn(const CellMarks& marks) {
     const Graft& g = live_[size_t(slot.graft)];
     bool drew = false;
     for (uint32_t wc = g.cell0; wc < g.cell0 + g.cells && wc < marks.size() && !drew; ++wc) drew = marks.marked(int32_t(wc));
-    proxy_[n].drawn = drew || slot.linked_image == image_;
     if (!drew) continue;
+    proxy_[n].last_drawn = image_;
     used.push_back(n);
     if (slot.borrowed >= 0) used.push_back(uint32_t(slot.borrowed));
   }
@@ -601,17 +616,15 @@ void PagedWorld::review_stand_ins() {
     // A cold start (nothing of the model in memory yet, e.g. the first frame): the root's proxy
     // draws the whole model at once instead of after a round trip of parked rays; it refines
     // from the next frame on like any linked node.
-    if (link_node(0, kLinkMissing)) {
-      proxy_[0].drawn = true;
-      refine(0);  // asks for the next levels now
-    }
+    if (link_node(0, kLinkMissing)) refine(0);  // asks for the next levels now
     return;
   }
   const std::vector<uint32_t> linked = linked_nodes_;
   for (const uint32_t n : linked) {
     ProxySlot& slot = proxy_[n];
     if (slot.link == kLinkNone) continue;  // unlinked by an ancestor's refinement meanwhile
-    if (!slot.drawn) {
+    const uint64_t age = image_ - slot.last_drawn;  // 1: the last image drew it
+    if (age > kLinkKeepImages) {
       // Out of view: a ray that reaches it later wants its cells again (and links it again).
       unlink_node(n);
       continue;
@@ -624,13 +637,13 @@ void PagedWorld::review_stand_ins() {
       unlink_node(n);
       continue;
     }
+    if (age > 1) continue;  // kept while unseen, refined when seen
     if (slot.borrowed >= 0) {
       // A finer ancestor's proxy came in since: it draws the node from now on.
       const int32_t donor = resident_above(n);
       if (donor >= 0 && donor != slot.borrowed) {
         unlink_node(n);
         if (!link_node(n, kLinkMissing, donor)) continue;  // no room: its cells wait
-        proxy_[n].drawn = true;
       }
     }
     refine(n);
