@@ -215,7 +215,9 @@ std::vector<uint32_t> PagedWorld::take_ready(bool take) {
       }
       ready.push_back(c);
     } else {
-      cache_->request(page);  // no-op while queued or loading; again if it was evicted unread
+      // No-op while queued or loading; again if it was evicted unread. Not for a cell a proxy
+      // fine enough will draw (its page is not read).
+      if (page_wanted(c)) cache_->request(page);
       waiting.push_back(c);
     }
   }
@@ -353,7 +355,7 @@ double PagedWorld::wait_for_pages(std::chrono::steady_clock::time_point deadline
         const uint64_t page = model_.cells()[wanted_[k]].page;
         if (cache_->ready(page) || cache_->failed(page)) {
           any = decodes_here;
-        } else if (proxy_.empty() || detail_target(wanted_[k]) < 0) {
+        } else if (page_wanted(wanted_[k])) {
           // Evicted unread (the page cache made room for later pages), or put back by the
           // decoder after its page went: asked for again, else nothing would bring it (a cell
           // a proxy draws for detail is not read, as in want()).

@@ -308,6 +308,8 @@ class PagedWorld final : public CellGate {
   // The highest ancestor of `cell` whose proxy (resident or not, not failed) is fine enough for
   // the pixel error: the one to read instead of the cell's page (-1: none qualifies).
   int32_t detail_target(uint32_t cell) const;
+  // A wanted cell's page is to be read: no ancestor's proxy is fine enough to draw it instead.
+  bool page_wanted(uint32_t cell) const { return proxy_.empty() || detail_target(cell) < 0; }
   // Asks for top node `node`'s proxy page unless it is resident, asked for or failed
   // (wanted_mutex_ held).
   void request_proxy(uint32_t node);
