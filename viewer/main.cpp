@@ -148,6 +148,7 @@ int run_store(ViewerOptions& o) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  frontier::tune_allocator_for_walk();
   CLI::App app{"frontier-view: walk through a store far larger than memory with exact per-pixel visibility\n"
                "(frustum casting on the CPU), paging in only the cells the view reaches, and report the\n"
                "working set every frame. Also renders a model file (NFF, PLY, OBJ, OFF, STL) in memory.\n"

@@ -28,6 +28,16 @@ void advise_huge_pages(const void* data, size_t bytes) {
   const uintptr_t hi = (reinterpret_cast<uintptr_t>(data) + bytes) & ~(kHuge - 1);
   if (hi > lo) (void)madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_HUGEPAGE);
 }
+// Gives the memory of a world array past its size back to the system (whole huge pages: the
+// array regrows into them at the cost of a fault each), so that the resident set follows what
+// the arrays hold after a compaction, not the most they ever held.
+template <typename T>
+void release_tail(std::vector<T>& v) {
+  constexpr uintptr_t kHuge = uintptr_t{2} << 20;
+  const uintptr_t lo = (reinterpret_cast<uintptr_t>(v.data() + v.size()) + kHuge - 1) & ~(kHuge - 1);
+  const uintptr_t hi = (reinterpret_cast<uintptr_t>(v.data() + v.capacity())) & ~(kHuge - 1);
+  if (hi > lo) (void)madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_DONTNEED);
+}
 // Bytes of the world's arrays that a cell's scene and subtree occupy once grafted.
 uint64_t charge_of(const Scene& s, const KdTree& t) {
   uint64_t b = s.prims.size() * sizeof(PrimRef) + s.triangles.size() * sizeof(Triangle) +
@@ -489,6 +499,12 @@ std::vector<uint32_t> PagedWorld::image_cells(const CellMarks& marks) const {
 }
 
 uint64_t PagedWorld::end_frame(const CellMarks& marks) {
+  if (++frames_since_trim_ >= kTrimFrames) {
+    frames_since_trim_ = 0;
+    std::lock_guard<std::mutex> lock(decoder_->mutex);
+    decoder_->trim = true;  // the decoder thread does it when idle (it takes milliseconds)
+    decoder_->cv.notify_one();
+  }
   note_touched(marks);
   const uint64_t drawn_proxies = proxy_.empty() ? 0 : note_drawn(marks);
   touched_bytes_ = lru_.touched_bytes();
@@ -668,6 +684,13 @@ void PagedWorld::compact() {
   scene_.cones.resize(kind_at[3]);
   scene_.quadrics.resize(kind_at[4]);
   if (!scene_.triangle_normals.empty()) scene_.triangle_normals.resize(kind_at[0]);
+  release_tail(tree_.nodes_);
+  release_tail(tree_.cells_);
+  release_tail(owner_);
+  release_tail(tree_.refs_);
+  release_tail(tree_.ref_bounds_);
+  release_tail(scene_.prims);
+  release_tail(scene_.triangles);
   garbage_bytes_ = 0;
   ++generation_;
 }

@@ -449,6 +449,10 @@ class PagedWorld final : public CellGate {
   mutable std::mutex wanted_mutex_;
   std::vector<uint32_t> wanted_;
 
+  // Frames between two returns of free heap memory to the system (by the decoder thread).
+  static constexpr uint32_t kTrimFrames = 8;
+  uint32_t frames_since_trim_ = 0;
+
   PagingCounters counters_;
   std::unique_ptr<DecoderState> decoder_;  // last: its thread stops first
 };

@@ -3,6 +3,8 @@
 // what it finished.
 #include "src/paging/paged_world.h"
 #include "src/paging/paged_world_internal.h"
+
+#include <malloc.h>
 #include "src/core/geometry.h"
 
 #include <tbb/task_arena.h>
@@ -106,6 +108,15 @@ void PagedWorld::decoder_loop() {
   DecoderState& s = *decoder_;
   uint64_t blocked_at = UINT64_MAX;  // room generation at which a decode did not fit
   while (true) {
+    bool trim = false;
+    {
+      std::lock_guard<std::mutex> lock(s.mutex);
+      std::swap(trim, s.trim);
+    }
+    // Decoded cells and proxies are made on this thread and freed on the frame's, in sizes that
+    // leave the allocator's free lists fragmented: they kept a 512 MiB walk's resident set at
+    // twice its budget. Whole free pages go back to the system here, off the frame's thread.
+    if (trim) malloc_trim(0);
     // Proxies first, whatever the room (they are small, and coarse to fine needs them): decoded
     // and their trees built here; the frame's thread only installs them (load_proxies).
     if (!proxy_.empty()) {

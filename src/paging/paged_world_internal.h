@@ -102,6 +102,7 @@ struct PagedWorld::DecoderState {
   bool has_eye = false;
   double ms = 0.0;                // decoding time since the last take_decoded()
   std::vector<ProxyDecoded> proxies_done;  // proxies decoded, not installed yet
+  bool trim = false;              // give free heap pages back to the system when idle
 };
 
 }  // namespace frontier

@@ -6,6 +6,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include <malloc.h>
+
 #include <chrono>
 
 namespace frontier {
@@ -101,6 +103,8 @@ void FrameReport::add_walk_counters(const Walker& walker) {
   collision_loads = c.loads;
   collision_errors = c.errors;
 }
+
+void tune_allocator_for_walk() { mallopt(M_MMAP_THRESHOLD, 64 << 10); }
 
 KdBuildOptions page_refine_options(const WalkOptions& options) {
   KdBuildOptions build;

@@ -93,6 +93,12 @@ struct WalkOptions {
   double pixel_error = 0.0;
 };
 
+// Sets the process's allocator for a walk (call once, before opening one): blocks of 64 KiB or
+// more — decoded cells and their trees, made on the decoder thread and freed on the frame's —
+// are mapped and unmapped, not kept in the heap's free lists, so the resident set follows what
+// the walk holds (fragmentation kept it at twice the --cache budget on a 100 M-triangle walk).
+void tune_allocator_for_walk();
+
 // How a paged-in store cell is refined into its own subtree under `options` (PagedWorld's
 // cell_build; bench_build times the same).
 KdBuildOptions page_refine_options(const WalkOptions& options);
