@@ -150,12 +150,14 @@ void WindowSession::draw_text_panel(float scale) {
                                  double(r.cache_budget) / kMiB, grouped(r.resident_cells), double(r.bytes_read) / kMiB),
                      kWhite);
   if (walk_.world().has_proxies()) {
-    // Stand-ins: the pixel error, the share of the image on proxies, cells drawn by an ancestor's
-    // proxy because their pages were missing.
+    // Level of detail: the pixel error, the share of the image on proxies, the cut's nodes drawn
+    // by proxies (and those the rays entered), and what the cut asked for that is not in yet.
     const double proxy = r.pixels ? 100.0 * double(r.proxy_pixels) / double(r.pixels) : 0.0;
-    lines.emplace_back(fmt::format("pixel error {:.3g} (, .)  proxy {:.0f}% of the image, {} nodes  missing cells {}",
-                                   walk_.pixel_error(), proxy, grouped(r.proxy_nodes), grouped(r.missing_nodes)),
-                       r.missing_nodes > 0 ? kOrange : kWhite);
+    lines.emplace_back(fmt::format("pixel error {:.3g} (, .)  proxy {:.0f}% of the image  cut {} nodes ({} drawn)  "
+                                   "requests {}",
+                                   walk_.pixel_error(), proxy, grouped(r.cut_nodes), grouped(r.proxy_nodes),
+                                   grouped(r.requests)),
+                       r.parked > 0 ? kOrange : kWhite);
   }
   if (walker_ != nullptr) {
     // Walk mode's collision grid, paged on its own budget (--collision-cache).

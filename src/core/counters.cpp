@@ -21,7 +21,7 @@ constexpr Field kFields[] = {
     {"plane_tests", &Counters::plane_tests},         {"primitives_tested", &Counters::primitives_tested},
     {"ray_primitive_tests", &Counters::ray_primitive_tests}, {"hits", &Counters::hits},
     {"shading_ops", &Counters::shading_ops},         {"specular_ops", &Counters::specular_ops},
-    {"shadow_rays", &Counters::shadow_rays},
+    {"shadow_rays", &Counters::shadow_rays},         {"parks", &Counters::parks},
 };
 
 }  // namespace

@@ -24,6 +24,7 @@ struct Counters {
   uint64_t shading_ops = 0;          // lighting evaluations (one per sample and light)
   uint64_t specular_ops = 0;         // specular terms evaluated
   uint64_t shadow_rays = 0;
+  uint64_t parks = 0;                // frusta and pixels parked on a missing cell (each time)
   double ms = 0.0;
 
   Counters& operator+=(const Counters& o);

@@ -250,6 +250,12 @@ bool FrustumCaster::runnable() const {
   return false;
 }
 
+size_t FrustumCaster::queued() const {
+  size_t n = current_.size();
+  for (const auto& w : workers_) n += w->children.size();
+  return n;
+}
+
 size_t FrustumCaster::held() const { return held_.size(); }
 
 bool FrustumCaster::complete() const { return !runnable() && parked() == 0 && held_.empty(); }
@@ -269,6 +275,7 @@ bool FrustumCaster::gate_missing(int32_t cell) const {
 
 // Keeps the job until resume_parked() queues it again from the eye.
 void FrustumCaster::park(const Job& job, Worker& w) const {
+  ++w.counters.parks;
   Job parked = job;
   parked.state = kFresh;
   parked.inc_count = 0;

@@ -94,6 +94,8 @@ class FrustumCaster {
   bool complete() const;
   // Queued work that run() could do now (parked work excluded).
   bool runnable() const;
+  // Jobs queued that run() could do now (work a frame left unfinished when its budget ended).
+  size_t queued() const;
 
   // Paging. With a gate set, a frustum or pixel that reaches a missing cell is parked (see
   // CellGate); run() does everything else and returns. After cells arrived, the owner calls

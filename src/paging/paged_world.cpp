@@ -124,15 +124,6 @@ void PagedWorld::want(int32_t cell) {
   if (c >= top_cells_ || wanted_flag_[c].exchange(1, std::memory_order_acq_rel) != 0) return;
   std::lock_guard<std::mutex> lock(wanted_mutex_);
   wanted_.push_back(static_cast<uint32_t>(c));
-  if (!proxy_.empty()) {
-    request_proxies(static_cast<uint32_t>(c));
-    // A cell whose ancestor's proxy is fine enough is drawn by that proxy (sync()): its page is
-    // not read, the proxy is asked for at once (not level by level).
-    if (const int32_t target = detail_target(static_cast<uint32_t>(c)); target >= 0) {
-      request_proxy(uint32_t(target));
-      return;
-    }
-  }
   cache_->request(model_.cells()[c].page);
 }
 
@@ -187,8 +178,8 @@ bool PagedWorld::fits(uint64_t bytes) {
   const uint64_t budget = lru_.budget();
   const uint64_t others = lru_.bytes() + garbage_bytes_ + bytes;
   if (others + proxy_bytes_ <= budget) return true;
-  // Proxies nothing draws now give way to cells (down to their share).
-  shed_proxies(std::max(budget / kProxyShareDivisor, budget - std::min(budget, others)));
+  // Proxies nothing draws now give way (least recently drawn first).
+  shed_proxies(budget - std::min(budget, others));
   return others + proxy_bytes_ <= budget;
 }
 
@@ -225,9 +216,8 @@ std::vector<uint32_t> PagedWorld::take_ready(bool take) {
       }
       ready.push_back(c);
     } else {
-      // No-op while queued or loading; again if it was evicted unread. Not for a cell a proxy
-      // fine enough will draw (its page is not read).
-      if (page_wanted(c)) cache_->request(page);
+      // No-op while queued or loading; again if it was evicted unread.
+      cache_->request(page);
       waiting.push_back(c);
     }
   }
@@ -277,9 +267,10 @@ void PagedWorld::place(Decoded& d, bool evict, SyncPass& pass) {
 bool PagedWorld::sync_impl(std::chrono::steady_clock::time_point deadline, bool evict) {
   const auto start = std::chrono::steady_clock::now();
   SyncPass pass;
-  if (!proxy_.empty() && load_proxies(deadline)) pass.changed = refine_arrived() || pass.changed;
-  // What the decoder finished, then stand-ins for what is still missing, then what is ready
-  // and not taken by the decoder, decoded here until the deadline.
+  // Proxies the decoder finished (grafted, not linked: the cut links them at begin_frame()),
+  // then the cells it finished, then what is ready and not taken by the decoder, decoded here
+  // until the deadline.
+  if (!proxy_.empty()) load_proxies(deadline);
   std::vector<Decoded> ahead = take_decoded();
   // In the decoder's order (most pixels first), until the deadline: the rest stay decoded for
   // the next call.
@@ -300,11 +291,12 @@ bool PagedWorld::sync_impl(std::chrono::steady_clock::time_point deadline, bool 
     wanted_.insert(wanted_.end(), pass.later.begin(), pass.later.end());
     pass.later.clear();
   }
-  if (!proxy_.empty() && stand_in_wanted(deadline)) pass.changed = true;
   // In frames that may end before every page is in (pegged), the decoder thread decodes alone
   // (unless it waits for room): the frame's thread only grafts, and its time goes to rays (a
   // stand-in, or the reconstruction, covers what is not in yet).
-  const std::vector<uint32_t> ready = take_ready(!budgeted_ || decoder_blocked());
+  // A pegged cut's frames decode here, in the paging share before the rays (the decoder thread
+  // pauses: it would take a core from the rays).
+  const std::vector<uint32_t> ready = take_ready(!budgeted_ || cut_ == CutKind::kPegged || decoder_blocked());
   const size_t batch = std::max<size_t>(4, 2 * static_cast<size_t>(tbb::info::default_concurrency()));
   for (size_t b = 0; b < ready.size(); b += batch) {
     if (pass.full || std::chrono::steady_clock::now() >= deadline) {
@@ -365,10 +357,9 @@ double PagedWorld::wait_for_pages(std::chrono::steady_clock::time_point deadline
         const uint64_t page = model_.cells()[wanted_[k]].page;
         if (cache_->ready(page) || cache_->failed(page)) {
           any = decodes_here;
-        } else if (page_wanted(wanted_[k])) {
+        } else {
           // Evicted unread (the page cache made room for later pages), or put back by the
-          // decoder after its page went: asked for again, else nothing would bring it (a cell
-          // a proxy draws for detail is not read, as in want()).
+          // decoder after its page went: asked for again, else nothing would bring it.
           cache_->request(page);
         }
       }
@@ -507,6 +498,9 @@ uint64_t PagedWorld::end_frame(const CellMarks& marks) {
   }
   note_touched(marks);
   const uint64_t drawn_proxies = proxy_.empty() ? 0 : note_drawn(marks);
+  // The cut's nodes the rays entered ask for what lies below them (pegged frames; the waited
+  // cut reads its proxies at begin_frame() and its rays page the rest).
+  if (cut_ == CutKind::kPegged) request_refinements();
   touched_bytes_ = lru_.touched_bytes();
   const std::vector<uint32_t> cells = image_cells(CellMarks());
   working_set_bytes_ = drawn_proxies;
@@ -544,7 +538,6 @@ void PagedWorld::begin_frame(CellMarks& marks) {
   // the last frame did not touch (least recently touched first), then the proxies the last image
   // did not draw, and only then, down to three quarters, the last frame's own cells (smallest on
   // screen first: no cell is touched in the new frame yet) — and compact.
-  if (!proxy_.empty()) review_stand_ins();
   const uint64_t budget = lru_.budget();
   const auto held = [&] { return lru_.bytes() + held_besides_cells(); };
   if (held() > budget / 4 * 3) {
@@ -558,6 +551,8 @@ void PagedWorld::begin_frame(CellMarks& marks) {
     if (held() > budget / 4 * 3) unlink_oldest(budget / 4 * 3 > others ? budget / 4 * 3 - others : 0);
   }
   if (garbage_bytes_ > 0 && held() > budget / 4 * 3) compact();
+  // The image's cut, from what is resident now; the traced tree keeps it until the next image.
+  choose_cut();
   marks.resize(tree_.cells_.size());
 }
 
@@ -585,8 +580,13 @@ uint64_t PagedWorld::release_pass(CellMarks& marks) {
     earlier_cells_.push_back(c);
   }
   lru_.begin_frame();
-  if (!proxy_.empty()) release_proxy_grafts();
-  while (!live_.empty()) unlink(live_.back().cell);
+  // Every cell goes, and the proxies the cut does not draw (the root's stays).
+  if (!proxy_.empty()) shed_proxies(0);
+  std::vector<uint32_t> cells;
+  for (const Graft& g : live_) {
+    if (!g.stand_in) cells.push_back(g.cell);
+  }
+  for (const uint32_t c : cells) unlink(c);
   compact();
   forget_dropped();
   marks.resize(tree_.cells_.size());
@@ -656,7 +656,7 @@ void PagedWorld::compact() {
       slide(scene_.triangle_normals, g.kind0[0], kind_at[0], g.kinds[0]);
     }
     if (g.stand_in) {
-      if (proxy_[g.cell].link != kLinkNone) tree_.nodes_[g.cell].child = node_at;
+      if (proxy_[g.cell].linked) tree_.nodes_[g.cell].child = node_at;
     } else {
       tree_.nodes_[leaf_node_[g.cell]].child = node_at;
     }

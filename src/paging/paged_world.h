@@ -30,33 +30,34 @@
 // them is its working set (image_cells(), working_set_bytes()), and a cell grafted twice in
 // one image counts as re-read (PagingCounters::cells_reread).
 //
-// Stand-ins (DESIGN.md "proxy at every interior node"; the store's `proxies` section). When the
-// store has proxies, an interior node of the top tree may be drawn by its PROXY instead of what
-// lies below it: the node becomes a link to a subtree built over the proxy's triangles in the
-// node's region (once per proxy), so every ray that reaches the region goes through the proxy
-// until it leaves the node. A whole node, never part of one: meshoptimizer kept the proxy's
-// borders, so it meets its neighbours' surfaces (pages or proxies) without cracks, while a
-// proxy beside a page inside one node would leave a step rays fall through. Two reasons, set
-// per frame by set_detail():
-//   detail   the node's error bound projects to less than `pixel_error` pixels at the point of
-//            its region nearest the eye: the pages below are not wanted (the highest such node
-//            with a resident proxy is linked);
-//   missing  frames that may show what they have (a time or sample budget, no sync paging): a
-//            wanted cell's deepest ancestor with a resident proxy is linked until it can be
-//            drawn finer — never nothing. At each frame's start a linked node its rays reached
-//            is refined (refine()): its children's proxies are requested, the pages of a node
-//            of a few cells wanted, and once both children can be drawn without it (a page, a
-//            proxy, or both of their children so) it is replaced by them. Linked nodes no ray
-//            reached in the last kLinkKeepImages images are unlinked.
-// The root's proxy is read when the world opens; other proxies are requested (through the page
-// cache) one level at a time and decoded in sync(). Decoded proxies and their subtrees are
-// charged to the decoded share: they may take what the cells the last frame touched leave of it
-// but a quarter (kept for the cells the next frame pages in), and at least a sixteenth; beyond
-// that the least recently drawn are dropped first (a far view is mostly proxies, a room mostly
-// cells).
-// With pixel_error 0 and no missing stand-ins (sync paging, or frames run to completion)
-// nothing stands in: the exact renderer.
-//
+// Level of detail: one cut per frame (DESIGN.md "Level of detail: one cut per frame"; the
+// store's `proxies` section). An interior node of the top tree may be drawn by its PROXY instead
+// of what lies below it: the node becomes a link to a subtree built over the proxy's triangles in
+// the node's region, so every ray that reaches the region goes through the proxy until it leaves
+// the node. A resident proxy is grafted (its subtree appended to the world's arrays) when it is
+// installed; linking and unlinking it only swap the node. A whole node, never part of one:
+// meshoptimizer kept the proxy's borders, so it meets its neighbours' surfaces without cracks.
+// The cut is chosen at begin_frame(), before the first ray, and the traced tree does not change
+// until the next begin_frame() in the frames that draw it:
+//   pegged   (pixel error T > 0 and a budget, set_detail()): from the root, a node whose error
+//            bound projects below T pixels (at the point of its region nearest the eye), or that
+//            lies outside the view, or whose children cannot all be drawn, is in the cut, drawn by
+//            its proxy (or, a leaf, by its cell); otherwise its children are considered. A child
+//            can be drawn when it is a resident, empty or failed cell, or a node with a resident
+//            proxy, or a node all of whose children can. The root's proxy is always resident, so
+//            the cut never leaves a hole and no ray of such a frame parks. After the frame
+//            (end_frame()), each cut node its rays entered whose bound projects to T or more asks
+//            for what lies below it, down to where the bounds project below T (a few levels at
+//            most): proxies, then pages, largest projected error first. Nothing is asked for
+//            where no ray went. What arrived is installed at the next begin_frame().
+//   waited   (T > 0, frames that run to completion, e.g. --sync-paging): the nodes in view whose
+//            bounds project below T are drawn by their proxies, read at begin_frame() if they are
+//            not resident; below the others, rays park on missing cells as in the exact path.
+//   exact    (T = 0): nothing is linked; rays park on missing cells and resume (the exact path).
+// Residency: decoded cells and grafted proxies share the decoded budget; what the current cut
+// draws (linked proxies, the cells its rays entered) is never evicted; other proxies go least
+// recently drawn first, cells as described above. When the cut's own proxies and cells fill
+// most of the budget, the cut stops asking for more (it stays coarser instead of thrashing).
 // Decoding ahead. A decoder thread takes wanted cells whose pages have arrived, the one that
 // spans the most pixels from the current eye first (cell size over distance), decodes and
 // refines them off the frame, and leaves them for sync(), which only grafts them (O(cell)).
@@ -106,18 +107,18 @@ struct PagingCounters {
   uint64_t page_errors = 0;     // pages that failed (each at most once)
   uint64_t primitives_paged_in = 0;
   uint64_t cells_reread = 0;    // cells grafted again in the same image (released in between)
-  uint64_t stand_ins = 0;       // stand-ins grafted (see the top of this file)
+  uint64_t stand_ins = 0;       // nodes linked to their proxies (see "Level of detail")
   uint64_t proxies_loaded = 0;  // proxy pages decoded
   double decode_ms = 0.0;       // wall time of sync() (on the frame's thread): placing, decoding, grafting
   double decode_ahead_ms = 0.0; // decoder thread time spent decoding cells sync() placed since
 };
 
-// What stood in for the cells an image touched (PagedWorld::stand_in_report).
+// What the cut drew for an image (PagedWorld::stand_in_report).
 struct StandInReport {
-  uint64_t proxy_nodes = 0;    // distinct top nodes whose proxies the frame's rays entered
-  uint64_t missing_nodes = 0;  // of those, nodes standing in for cells whose pages were missing
-  uint64_t detail_cells = 0;   // store cells the rays reached drawn by a proxy for detail (pixel error)
-  uint64_t missing_cells = 0;  // store cells the rays reached drawn by a proxy while their pages were missing
+  uint64_t cut_nodes = 0;    // interior nodes drawn by their proxies (linked now)
+  uint64_t proxy_nodes = 0;  // of those, the nodes the image's rays entered
+  uint64_t proxy_cells = 0;  // store cells (with pages) below the nodes the rays entered
+  uint64_t requests = 0;     // proxies and pages asked for, not in yet
 };
 
 class PagedWorld final : public CellGate {
@@ -197,28 +198,29 @@ class PagedWorld final : public CellGate {
            failed_[store_cell] == 0;
   }
 
-  // Stand-ins for the next frame (call before begin_frame()): the view, the pixel error below
-  // which a proxy draws a cell instead of its page (0: never), and whether cells whose pages are
-  // missing are drawn by an ancestor's proxy meanwhile (the frame is pegged: then, proxies or
-  // not, the decoder thread decodes alone). Stand-ins that no longer qualify are unlinked at
-  // begin_frame().
-  void set_detail(const View& view, double pixel_error, bool stand_in_missing);
+  // The cut of the next image (call before begin_frame(), which chooses it; see "Level of
+  // detail"): the view, the pixel error T (0: the exact path, nothing is linked) and whether
+  // frames may end before every page is in (pegged: the cut draws only what is resident, and the
+  // decoder thread decodes alone).
+  void set_detail(const View& view, double pixel_error, bool pegged);
   bool has_proxies() const { return !proxy_.empty(); }
-  // World primitive `p` belongs to a stand-in (now or when it was confirmed: unlinked stand-ins'
+  // The current image's cut is the pegged kind: no ray of it parks.
+  bool pegged_cut() const { return cut_ == CutKind::kPegged; }
+  // World primitive `p` belongs to a proxy (now or when it was confirmed: dropped proxies'
   // primitives keep their flag until compact()).
   bool stand_in_prim(uint32_t p) const { return p < stand_in_prim_.size() && stand_in_prim_[p] != 0; }
   // Store cell `c` is drawn by an ancestor's proxy now.
   bool stood_in(uint32_t c) const { return !proxy_.empty() && link_above(leaf_node_[c]) >= 0; }
-  // Top nodes drawn by their proxies now.
+  // Top nodes drawn by their proxies now (the cut's interior nodes).
   const std::vector<uint32_t>& linked_nodes() const { return linked_nodes_; }
-  // The ancestor whose proxy linked top node `node` draws (its own not being in; -1: its own).
-  int32_t borrowed_from(uint32_t node) const;
-  // Stand-ins replaced by their pages (or by a finer proxy) so far: an image that showed
-  // stand-ins is out of date once this grows.
-  uint64_t stand_ins_replaced() const { return stand_ins_replaced_; }
-  // What stood in for the cells the current pass reached (`marks`: the caster's).
-  StandInReport stand_in_report(const CellMarks& marks) const;
-  // Decoded proxies' bytes (within the decoded share).
+  // Times a chosen cut differed from the one before: an image drawn with proxies is out of date
+  // once this grows.
+  uint64_t cut_changes() const { return cut_changes_; }
+  // Proxies and pages the cut asked for that are not in yet.
+  size_t requests_outstanding() const;
+  // What the image's rays reached of the cut, as of the last end_frame().
+  StandInReport stand_in_report() const;
+  // Grafted proxies' bytes (within the decoded share).
   uint64_t proxy_bytes() const { return proxy_bytes_; }
 
   PagingCounters take_counters();
@@ -301,97 +303,57 @@ class PagedWorld final : public CellGate {
   void keep_decoded(std::move_iterator<std::vector<Decoded>::iterator> first,
                     std::move_iterator<std::vector<Decoded>::iterator> last);
 
-  // Stand-ins (paged_world_stand_in.cpp).
+  // Level of detail (paged_world_cut.cpp).
+  enum class CutKind : uint8_t { kExact, kPegged, kWaited };
   void open_proxies();
-  // Requests the proxy pages of `cell`'s ancestors up to the nearest one resident (wanted_mutex_ held).
-  void request_proxies(uint32_t cell);
-  // The highest ancestor of `cell` whose proxy (resident or not, not failed) is fine enough for
-  // the pixel error: the one to read instead of the cell's page (-1: none qualifies).
-  int32_t detail_target(uint32_t cell) const;
-  // A wanted cell's page is to be read: no ancestor's proxy is fine enough to draw it instead.
-  bool page_wanted(uint32_t cell) const { return proxy_.empty() || detail_target(cell) < 0; }
   // Asks for top node `node`'s proxy page unless it is resident, asked for or failed
   // (wanted_mutex_ held).
   void request_proxy(uint32_t node);
-  // The node whose proxy draws `cell` for detail (-1: none qualifies).
-  int32_t detail_node(uint32_t cell) const;
-  // The deepest ancestor of `cell` with a resident proxy (-1: none).
-  int32_t nearest_proxy(uint32_t cell) const;
-  // Pixels node `node`'s error bound spans at the point of its region nearest the eye.
+  // Pixels node `node`'s error bound spans at the point of its region nearest the eye (infinite
+  // without a proxy, or with the eye inside the region).
   double pixels_of(uint32_t node) const;
-  // `node` has a resident proxy whose error stays below the pixel error (pixels_of(), computed
-  // where asked: a frame asks about the nodes on its rays' paths, not the whole top tree).
-  bool detail_ok(int32_t node) const;
-  // Makes a decoded proxy resident (or marks it failed); true when it became resident.
+  // Node `node`'s region may be seen from the view (its projection meets the screen).
+  bool in_view(uint32_t node) const;
+  // Makes a decoded proxy resident (grafted) or marks it failed; true when it became resident.
   bool install_proxy(ProxyDecoded& p);
-  // Decodes the proxies whose pages arrived; true when one did.
+  // Installs the proxies the decoder finished (and, in frames that wait for their pages, decodes
+  // those that arrived here); true when one became resident.
   bool load_proxies(std::chrono::steady_clock::time_point deadline);
-  void drop_proxies_over_budget();
-  // The decoded share a world's proxies may always take (proxy_cap(): more when the cells the
-  // frames touch leave more; least recently used beyond it go first; the root's stays).
-  static constexpr uint64_t kProxyShareDivisor = 16;
   // Stamps a resident proxy as just used (its place in the proxy LRU).
   void stamp_proxy(uint32_t node);
   // Drops resident proxies no node is linked to (least recently used first, never the root's)
-  // until proxies take at most `target` bytes or only linked ones are left: cells that need the
-  // room come first.
+  // until proxies take at most `target` bytes or only linked ones are left.
   void shed_proxies(uint64_t target);
-  // What the decoded share leaves proxies: all but the cells the last frame touched and a
-  // quarter for the cells the next one pages in, and at least a sixteenth.
-  uint64_t proxy_cap() const;
-  // Wanted cells get the node that draws them linked: for detail (they leave the wanted list),
-  // or, in frames that stand in for missing cells, while their pages are missing. True when the
-  // tree changed.
-  bool stand_in_wanted(std::chrono::steady_clock::time_point deadline);
-  static constexpr uint8_t kLinkNone = 0, kLinkDetail = 1, kLinkMissing = 2;
-  // Links top node `node` to its proxy's subtree (grafting it once) for reason `why`, unlinking
-  // linked nodes below it. With `from` (a resident ancestor), to a subtree over that ancestor's
-  // proxy clipped to the node's region instead (a borrowed stand-in, for a node whose own proxy
-  // is not in). False when nothing changed (already linked, or no room).
-  bool link_node(uint32_t node, uint8_t why, int32_t from = -1);
-  // Restores the node; a borrowed stand-in's subtree goes with it.
+  // Links top node `node` to its proxy's subtree (REQUIRES: grafted, no linked node above or
+  // below it) / restores the node.
+  void link_node(uint32_t node);
   void unlink_node(uint32_t node);
-  // The highest interior node on the path from below top node `above` down to `cell` with no
-  // linked node in its subtree (-1: none): where `above`'s proxy can draw `cell` without
-  // replacing finer linked proxies.
-  int32_t free_node_on_path(uint32_t above, uint32_t cell) const;
-  // The deepest resident proxy strictly above top node `node` (-1: none).
-  int32_t resident_above(uint32_t node) const;
-  // A node below top node `node` is linked.
-  bool linked_below(uint32_t node) const;
   // The linked node at or above top node `node` (-1: none).
   int32_t link_above(uint32_t node) const;
-  // Every cell under `node` is resident, failed or empty.
-  bool complete_below(uint32_t node) const;
-  // `node` can be drawn without its ancestors' proxies (see "Stand-ins").
+  // `node` can be drawn from what is resident (see "Level of detail").
   bool drawable(uint32_t node) const;
-  void link_children(uint32_t node);
-  void refine(uint32_t node);
-  // Replaces linked nodes whose children can be drawn now (proxies that arrived). True when it did.
-  bool refine_arrived();
-  // Subtrees of at most this many cells have their pages wanted when their node is linked for
-  // missing pages (rays never reach them while it is).
-  static constexpr uint32_t kRefineCells = 8;
-  // A linked node no image's rays reached for this many images is unlinked (out of view). Not
-  // after one: a pegged image reaches part of the view, and a link the next one needs would
-  // cost its rays a round trip (parked, wanted, linked again).
-  static constexpr uint64_t kLinkKeepImages = 8;
-  // Records which linked nodes the image's rays reached (end_frame()); returns the bytes of the
-  // proxies they drew (part of the image's working set).
+  // Chooses the cut for the image begin_frame() starts and links it; true when it changed.
+  bool choose_cut();
+  // The waited cut's proxies that are not resident: read and installed now.
+  void load_now(const std::vector<uint32_t>& nodes);
+  // After a pegged frame: the cut nodes its rays entered (note_drawn()) ask for what lies below.
+  void request_refinements();
+  // Records which linked nodes the image's rays reached (end_frame(): drawn_nodes_); returns the
+  // bytes of the proxies they drew (part of the image's working set).
   uint64_t note_drawn(const CellMarks& marks);
-  // Grafts node `node`'s proxy (or ancestor `from`'s) as a subtree over its region (once); false
-  // when it does not fit.
-  bool graft_proxy(uint32_t node, int32_t from = -1);
+  // Grafts node `node`'s proxy as a subtree over its region; false when it does not fit.
+  bool graft_proxy(uint32_t node, ProxyDecoded& p);
   std::array<int32_t, 6> node_ropes(uint32_t node) const;
-  // Appends the store cells under top node `node` whose regions overlap `box`.
-  void cells_under(uint32_t node, const Aabb& box, std::vector<uint32_t>& out) const;
+  // Unlinks the node and removes its proxy (subtree and bytes); it is no longer resident.
   void drop_proxy(uint32_t node);
-  // Unlinks the node and removes its proxy's subtree (the decoded proxy stays).
-  void release_proxy_graft(uint32_t node);
-  // Removes the node's grafted subtree (its own proxy's or a borrowed one) and its bytes.
-  void remove_proxy_graft(uint32_t node);
-  void release_proxy_grafts();
-  void review_stand_ins();
+  // Wanted cells the current cut did not ask for again go off the list (pegged cut).
+  void forget_unasked(const std::vector<uint32_t>& cells, const std::vector<uint32_t>& proxies);
+  // The cut asks for at most this many proxies and pages after a frame, largest error first.
+  static constexpr size_t kMaxProxyRequests = 512, kMaxPageRequests = 256;
+  // Below a cut node its rays entered, what is asked for goes at most this many levels down.
+  static constexpr int kRequestLevels = 4;
+  // The cut stops asking for more once what it draws takes this share of the decoded budget.
+  static constexpr double kCutFullShare = 0.75;
 
   const StoreModel& model_;
   std::unique_ptr<store::StorePageSource> source_;
@@ -421,13 +383,13 @@ class PagedWorld final : public CellGate {
   std::vector<uint64_t> decoded_size_;   // store cell -> bytes when last grafted
   uint64_t generation_ = 0;              // compactions so far
 
-  // Stand-ins.
+  // Level of detail.
   std::vector<ProxySlot> proxy_;         // per top node; empty when the store has no proxies
   std::vector<int32_t> parent_;          // per top node (-1: the root)
-  std::vector<uint32_t> subtree_end_;    // per top node: one past its subtree (preorder)
-  std::vector<uint32_t> leaves_under_;   // per top node: cells in its subtree
   std::vector<uint32_t> linked_nodes_;   // top nodes that are links to their proxies now
-  std::vector<uint8_t> stand_in_prim_;   // world primitive -> belongs to a stand-in
+  std::vector<uint32_t> drawn_nodes_;    // of those, the ones the last image's rays entered
+  std::vector<uint32_t> page_cells_under_;  // per top node: cells with pages in its subtree
+  std::vector<uint8_t> stand_in_prim_;   // world primitive -> belongs to a proxy
   std::vector<uint32_t> proxy_wanted_;   // nodes whose proxy pages were requested, not decoded
   uint64_t proxy_bytes_ = 0;
   uint64_t proxy_use_ = 0;               // stamps for proxy LRU
@@ -436,14 +398,14 @@ class PagedWorld final : public CellGate {
   std::priority_queue<std::pair<uint64_t, uint32_t>, std::vector<std::pair<uint64_t, uint32_t>>,
                       std::greater<>> proxy_lru_;
   size_t proxies_resident_ = 0;
-  uint64_t stand_ins_replaced_ = 0;
+  uint64_t cut_changes_ = 0;
+  uint64_t cut_bytes_ = 0;               // decoded bytes the current cut draws (proxies and cells)
   View detail_view_;
   double pixel_error_ = 0.0;
+  CutKind cut_ = CutKind::kExact;
   // Frames may end before every page is in (pegged): the decoder thread decodes alone, the
   // frame's thread only places what it finished (set_detail()).
   bool budgeted_ = false;
-  // Pegged frames draw missing cells by an ancestor's proxy (when the store has proxies).
-  bool stand_in_missing() const { return budgeted_ && !proxy_.empty(); }
 
   std::unique_ptr<std::atomic<uint8_t>[]> wanted_flag_;  // store cell: in wanted_ already
   mutable std::mutex wanted_mutex_;

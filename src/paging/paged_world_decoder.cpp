@@ -117,10 +117,20 @@ void PagedWorld::decoder_loop() {
     // leave the allocator's free lists fragmented: they kept a 512 MiB walk's resident set at
     // twice its budget. Whole free pages go back to the system here, off the frame's thread.
     if (trim) malloc_trim(0);
+    {
+      std::unique_lock<std::mutex> lock(s.mutex);
+      if (s.stop) return;
+      if (s.paused) {
+        s.cv.wait_for(lock, kDecoderIdle);
+        continue;
+      }
+    }
     // Proxies first, whatever the room (they are small, and coarse to fine needs them): decoded
     // and their trees built here; the frame's thread only installs them (load_proxies).
+    bool proxies_decoded = false;
     if (!proxy_.empty()) {
       for (const uint32_t node : pick_ready_proxies(kDecodeBatch)) {
+        proxies_decoded = true;
         ProxyDecoded p;
         const auto start = std::chrono::steady_clock::now();
         bool decoded = false;
@@ -142,7 +152,7 @@ void PagedWorld::decoder_loop() {
       if (s.stop) return;
       s.blocked = s.room_generation == blocked_at;
       if (s.done_bytes >= s.cap || s.blocked) {
-        s.cv.wait_for(lock, kDecoderIdle);
+        if (!proxies_decoded) s.cv.wait_for(lock, kDecoderIdle);
         continue;
       }
       eye = s.eye;
@@ -150,8 +160,9 @@ void PagedWorld::decoder_loop() {
     }
     const std::vector<uint32_t> cells = pick_ready(eye, has_eye, kDecodeBatch);
     if (cells.empty()) {
+      // Nothing ready: sleep, unless proxies were decoded (more may be ready).
       std::unique_lock<std::mutex> lock(s.mutex);
-      if (!s.stop) s.cv.wait_for(lock, kDecoderIdle);
+      if (!s.stop && !proxies_decoded) s.cv.wait_for(lock, kDecoderIdle);
       continue;
     }
     std::vector<uint32_t> back;

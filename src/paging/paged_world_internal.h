@@ -58,29 +58,16 @@ struct PagedWorld::ProxyDecoded {
   KdTree tree;
 };
 
-// A top node's proxy as the world holds it: its triangles (source and material kept) and their
-// tree, and whether the node is linked to a subtree over them (or over an ancestor's).
-// One per top node, so it stays small (a 1 B-triangle store has millions of top nodes); what a
-// resident proxy holds is behind `data`.
+// A top node's proxy as the world holds it. One per top node, so it stays small (a 1 B-triangle
+// store has millions of top nodes): a resident proxy is a graft in the world's arrays.
 struct PagedWorld::ProxySlot {
-  struct Data {
-    Scene scene;
-    KdTree tree;  // its triangles' tree over the node's region (built by decode_proxy; moved
-                  // into the graft, rebuilt if the proxy is grafted again)
-  };
-  std::unique_ptr<Data> data;  // while resident
-  uint64_t bytes = 0;
-  uint64_t used = 0;         // proxy_use_ stamp of the last stand-in made from it
+  uint64_t bytes = 0;        // its graft's
+  uint64_t used = 0;         // proxy_use_ stamp of the last cut that drew it
   KdTree::Node saved;        // the top node as the store has it, while linked
-  int32_t graft = -1;        // its subtree's index in live_ once grafted (-1: none)
-  int32_t borrowed = -1;     // the graft draws this ancestor's proxy (clipped to the node's region)
-  uint8_t link = 0;          // kLinkNone, or why the top node is a link to that subtree now
-  uint8_t last_link = 0;     // why it was linked last (the report, after it gave way)
-  bool requested = false;
-  bool resident = false;
+  int32_t graft = -1;        // its subtree's index in live_ while resident (-1: not resident)
+  bool linked = false;       // the top node is a link to the graft now (in the cut)
+  bool requested = false;    // asked for, not installed yet
   bool failed = false;
-  uint64_t last_drawn = 0;   // linked: the last image (PagedWorld::image_) whose rays reached
-                             // its subtree, or during which it was linked
 };
 
 // The decoder thread's shared state (paged_world_decoder.cpp). Lock order: wanted_mutex_, then
@@ -103,6 +90,7 @@ struct PagedWorld::DecoderState {
   double ms = 0.0;                // decoding time since the last take_decoded()
   std::vector<ProxyDecoded> proxies_done;  // proxies decoded, not installed yet
   bool trim = false;              // give free heap pages back to the system when idle
+  bool paused = false;            // a pegged cut's frames: the frame's threads decode (sync())
 };
 
 }  // namespace frontier

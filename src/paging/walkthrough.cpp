@@ -23,10 +23,6 @@ constexpr int kPrefetchFrames = 4;
 constexpr double kPassFill = 0.75;
 // Share of a pegged frame time that paging in (on the frame's thread) may take at a time.
 constexpr double kPageInShare = 0.25;
-// Share of a pegged frame time a slice of rays runs at most in frames that stand in for missing
-// cells: between slices sync() links proxies for the cells the rays wanted and the work parked
-// on them resumes through the links, within the frame (a slice to the deadline left it parked).
-constexpr double kStandInSliceShare = 0.125;
 
 bool same_camera(const Camera& a, const Camera& b) {
   return a.eye == b.eye && a.look_at == b.look_at && a.up == b.up && a.vfov_deg == b.vfov_deg;
@@ -79,8 +75,11 @@ nlohmann::json FrameReport::to_json() const {
                       {"shading_ops", shading_ops},
                       {"shadow_rays", shadow_rays},
                       {"pixel_error", pixel_error},
+                      {"unfinished", unfinished},
+                      {"cut_nodes", cut_nodes},
                       {"proxy_nodes", proxy_nodes},
-                      {"missing_nodes", missing_nodes},
+                      {"proxy_cells", proxy_cells},
+                      {"requests", requests},
                       {"proxy_pixels", proxy_pixels},
                       {"stand_ins", stand_ins},
                       {"proxies_loaded", proxies_loaded}};
@@ -148,14 +147,18 @@ Result<std::unique_ptr<Walkthrough>> Walkthrough::open(const std::string& store_
 Walkthrough::~Walkthrough() = default;
 
 void Walkthrough::start_image(bool shadows, double pixel_error) {
-  // Missing cells are drawn by proxies only in frames that may end before every page is in.
+  // Frames that may end before every page is in draw the cut of what is resident (no ray
+  // parks); what arrived since the last image is placed first, within the paging share.
   const FrameBudget& budget = options_.budget;
-  const bool stand_in_missing = !options_.sync_paging && (budget.ms > 0.0 || budget.samples > 0);
-  world_->set_detail(view_, pixel_error, stand_in_missing);
+  const bool pegged = !options_.sync_paging && (budget.ms > 0.0 || budget.samples > 0);
+  world_->set_detail(view_, pixel_error, pegged);
+  if (pegged && pixel_error > 0.0 && world_->has_proxies()) {
+    const double share = budget.ms > 0.0 ? kPageInShare * budget.ms : 8.0;
+    world_->sync(Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double, std::milli>(share)));
+  }
   world_->begin_frame(marks_);
   image_shadows_ = shadows;
   image_pixel_error_ = pixel_error;
-  image_replaced_at_ = world_->stand_ins_replaced();
   image_proxy_pixels_ = 0;
   caster_->begin(view_, buffer_, marks_, true, shadows);
   image_samples_ = 0;
@@ -286,12 +289,14 @@ FrameReport Walkthrough::render_frame(const Camera& camera, bool deferred_now) {
   const std::optional<Camera> previous = last_camera_;
   const bool still = previous && same_camera(*previous, camera);
   r.continued = !choose_image(camera, still, deferred_now);
+  parked_at_start_ = r.continued ? caster_->parked() + caster_->held() : 0;
   passes_.reclaimed = false;
   last_camera_ = camera;
   FramePlan plan = plan_frame(start, still);
   Counters counters;
   r.stall_ms = render_image(plan, counters);
-  if (previous) prefetch(camera, *previous);
+  // A pegged cut draws the eye's cell from what is resident like any other: no prefetch.
+  if (previous && !world_->pegged_cut()) prefetch(camera, *previous);
   const auto finish_start = Clock::now();
   reconstruct_for_display(r);
   r.cells_touched = world_->end_frame(marks_);
@@ -314,14 +319,22 @@ bool Walkthrough::choose_image(const Camera& camera, bool still, bool deferred_n
     view_ = View(camera, options_.width, options_.height);
     // A still frame is the exact image at once; a moving camera's frames use the pixel error.
     start_image(deferred_now && lights, deferred_now ? 0.0 : options_.pixel_error);
-  } else if (caster_->complete() && image_proxy_pixels_ > 0 &&
-             (image_pixel_error_ > 0.0 || world_->stand_ins_replaced() != image_replaced_at_)) {
-    // The camera stopped and its image is complete but shows proxies: refine towards the exact
-    // image (pixel error 0, and the pages that replaced stand-ins since).
-    start_image(image_shadows_, 0.0);
+  } else if (caster_->complete() && image_proxy_pixels_ > 0 && image_pixel_error_ > 0.0) {
+    // The camera stopped and its image is complete but shows proxies: a finer cut while what it
+    // asked for comes in (as long as the cut still changes), then the exact image (pixel error 0).
+    const bool changed = world_->cut_changes() != still_cut_changes_;
+    still_cut_changes_ = world_->cut_changes();
+    still_waits_ = changed ? 0 : still_waits_ + 1;
+    const bool refine = world_->requests_outstanding() > 0 && still_waits_ < kStillWaits;
+    start_image(image_shadows_, refine ? image_pixel_error_ : 0.0);
   } else if (caster_->complete() && lights && !image_shadows_) {
-    // The camera stopped and the image is complete: now the deferred effects.
-    start_image(true, image_pixel_error_);
+    // The camera stopped and the image is complete: now the deferred effects, exactly (shadow
+    // rays go anywhere, also where no cut was chosen for the view).
+    start_image(true, 0.0);
+  } else if (world_->pegged_cut() && !caster_->runnable() && !caster_->complete()) {
+    // A pegged cut's image cannot finish work that parked (never expected: `parked` says so):
+    // the exact image instead.
+    start_image(image_shadows_, 0.0);
   } else {
     return false;
   }
@@ -353,11 +366,13 @@ Walkthrough::FramePlan Walkthrough::plan_frame(Clock::time_point start, bool sti
 double Walkthrough::render_image(FramePlan& plan, Counters& counters) {
   const FrameBudget& budget = options_.budget;
   double stall_ms = 0.0;
+  // A pegged cut's tree stays as it is until the next image: nothing parks, nothing is placed.
+  const bool cut = world_->pegged_cut();
   while (true) {
     // With nothing else to do, paging in may go on, a paging share at a time in a frame that
     // may end early (what it grafts is drawn before the frame ends), to the end of a frame
     // that waits for every page.
-    if (world_->sync(caster_->runnable() ? plan.page_in_deadline : page_in_slice(plan))) {
+    if (!cut && world_->sync(caster_->runnable() ? plan.page_in_deadline : page_in_slice(plan))) {
       caster_->tree_changed();
       caster_->resume_parked();
     }
@@ -367,6 +382,7 @@ double Walkthrough::render_image(FramePlan& plan, Counters& counters) {
       run_slice(plan, counters);
       continue;
     }
+    if (cut) break;  // parked work (a bug: the report's parked says so) waits for the next image
     // Only parked (or held) work is left. With no page on its way, the part a pass resumed is
     // done, or what it waits for was dropped for lack of room.
     if (world_->pending() == 0) {
@@ -444,7 +460,6 @@ void Walkthrough::run_slice(const FramePlan& plan, Counters& counters) {
   FrameBudget slice;
   if (budget.ms > 0.0) {
     slice.ms = std::max(0.01, std::chrono::duration<double, std::milli>(plan.deadline - Clock::now()).count());
-    if (world_->has_proxies() && !plan.wait_for_all) slice.ms = std::min(slice.ms, kStandInSliceShare * budget.ms);
   }
   if (budget.samples > 0) slice.samples = budget.samples - counters.samples;
   if (plan.overtime) slice.samples = plan.floor_samples - image_samples_;
@@ -487,12 +502,17 @@ void Walkthrough::report_image(FrameReport& r, const Counters& counters) const {
   r.image_samples = image_samples_;
   r.complete = caster_->complete();
   r.shadows = image_shadows_;
-  r.parked = caster_->parked() + caster_->held();
+  // Every job that waited in this frame: parked during it, or still parked (or held) from an
+  // earlier frame of the image when it began; and what the budget left queued.
+  r.parked = counters.parks + parked_at_start_;
+  r.unfinished = caster_->queued();
   r.pixel_error = image_pixel_error_;
   if (world_->has_proxies()) {
-    const StandInReport s = world_->stand_in_report(marks_);
+    const StandInReport s = world_->stand_in_report();
+    r.cut_nodes = s.cut_nodes;
     r.proxy_nodes = s.proxy_nodes;
-    r.missing_nodes = s.missing_cells;
+    r.proxy_cells = s.proxy_cells;
+    r.requests = s.requests;
     for (size_t i = 0; i < buffer_.size(); ++i) {
       if (buffer_.confirmed(i) && world_->stand_in_prim(buffer_.prim(i))) ++r.proxy_pixels;
     }

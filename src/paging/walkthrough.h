@@ -86,10 +86,11 @@ struct WalkOptions {
   // render every frame complete (paging synchronously) and ignore the budget.
   Visibility visibility = Visibility::kFrustumAdvance;
   bool cull_back_faces = false;  // rasterizing classes: drop back faces (closed solids only)
-  // Stores with proxies (PagedWorld "Stand-ins"): a cell is drawn by an ancestor's proxy when
-  // that proxy's error bound projects below this many pixels (0: never; the exact renderer).
-  // Budgeted frames (no sync paging) also draw missing cells by proxies until their pages
-  // arrive. A still camera refines: once its image is complete, the next is rendered with 0.
+  // Stores with proxies (PagedWorld "Level of detail"): the cut draws a node by its proxy when
+  // the proxy's error bound projects below this many pixels (0: never; the exact renderer).
+  // Budgeted frames (no sync paging) draw one cut of what is resident, chosen before the first
+  // ray: no ray parks. A still camera refines: once its image is complete and nothing it asked
+  // for is outstanding, the next is rendered with 0.
   double pixel_error = 0.0;
 };
 
@@ -130,7 +131,10 @@ struct FrameReport {
   bool complete = false;            // every pixel of the image confirmed
   bool continued = false;           // same camera as the previous frame: the image went on
   bool shadows = false;             // the image has the deferred shadow effect
-  uint64_t parked = 0;              // parked jobs left at the end of the frame
+  // Frusta and pixels that waited for a missing cell in this frame: parked during it, or still
+  // parked from an earlier frame of the same image (0 in every frame of a pegged cut).
+  uint64_t parked = 0;
+  uint64_t unfinished = 0;          // jobs still queued when the frame's budget ended
   uint64_t cells_evicted = 0;
   uint64_t cells_dropped = 0;
   uint64_t page_errors = 0;         // cumulative: pages that failed to read or decode
@@ -158,13 +162,16 @@ struct FrameReport {
   double reconstruct_ms = 0.0;      // 0 when the frame did not reconstruct its image
   uint64_t shading_ops = 0;
   uint64_t shadow_rays = 0;
-  // Stand-ins (stores with proxies): the pixel error this image was rendered with; distinct top
-  // nodes whose proxies the image's rays entered; the store cells those rays reached that were
-  // drawn by an ancestor's proxy because their pages were missing; pixels confirmed on a proxy;
-  // stand-ins grafted and proxies decoded in this frame.
+  // Level of detail (stores with proxies, PagedWorld "Level of detail"): the pixel error this
+  // image was rendered with; the cut's nodes drawn by their proxies, and of those the nodes the
+  // image's rays entered; the store cells below the nodes those rays entered; proxies
+  // and pages asked for and not in yet; pixels confirmed on a proxy; nodes linked to their
+  // proxies and proxies installed in this frame.
   double pixel_error = 0.0;
+  uint64_t cut_nodes = 0;
   uint64_t proxy_nodes = 0;
-  uint64_t missing_nodes = 0;
+  uint64_t proxy_cells = 0;
+  uint64_t requests = 0;
   uint64_t proxy_pixels = 0;
   uint64_t stand_ins = 0;
   uint64_t proxies_loaded = 0;
@@ -274,7 +281,12 @@ class Walkthrough {
   std::optional<Camera> last_camera_;
   bool image_shadows_ = false;
   double image_pixel_error_ = 0.0;   // the pixel error of the current image
-  uint64_t image_replaced_at_ = 0;   // world's stand_ins_replaced() when the image began
+  uint64_t parked_at_start_ = 0;     // jobs parked or held when the frame began (continued image)
+  // A still camera's images refine the cut while what it asked for comes in; after this many in
+  // a row without a change of the cut, the exact image follows anyway.
+  static constexpr int kStillWaits = 8;
+  uint64_t still_cut_changes_ = 0;   // world's cut_changes() at the last still refinement
+  int still_waits_ = 0;
   uint64_t image_proxy_pixels_ = 0;  // proxy pixels of the current image, as last reported
   uint64_t frames_ = 0;
   uint64_t last_bytes_read_ = 0;
