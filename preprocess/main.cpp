@@ -1,5 +1,6 @@
 // frontier-build: streams model files into one store file in bounded memory (preprocess/build.h).
 #include "preprocess/build.h"
+#include "src/core/option_checks.h"
 #include "src/core/progress.h"
 
 #include <CLI/CLI.hpp>
@@ -8,7 +9,10 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <new>
+#include <optional>
 #include <regex>
+#include <system_error>
 
 namespace {
 
@@ -61,8 +65,10 @@ int main(int argc, char** argv) {
                  "borders stop it) with a measured object-space error bound, for frontier-view to draw far and missing "
                  "subtrees; 0: no proxies (a faster build, but a walk shows nothing where cells are not yet in)")
       ->default_val(frontier::kDefaultProxyTriangles);
-  app.add_option("--threads", options.threads, "threads that build and encode parts (0: all cores); reading and "
-                 "partitioning use a reader thread besides")->default_val(0);
+  app.add_option("--threads", options.threads, "threads that build and encode parts (0: all cores; at most 4 per "
+                 "hardware thread); reading and partitioning use a reader thread besides")
+      ->default_val(0)
+      ->check(frontier::option_checks::thread_count());
   app.add_flag("--walkable", options.walkable,
                "add a sparse OpenVDB distance grid for walk-mode collision, built out of core (spilled beside "
                "the output) and stored as 64^3-voxel brick pages (also when a MODEL.json sidecar says "
@@ -80,9 +86,11 @@ int main(int argc, char** argv) {
                  "(for the rasterizing visibility classes, which draw triangles only)")
       ->check(CLI::Range(3, 1024));
   app.add_flag("--no-portals", no_portals, "do not store the cells and portals of a MODEL.json sidecar");
-  app.add_option("--sdf-voxel", options.sdf_voxel, "voxel size of the collision grid (default: from the model size)");
+  app.add_option("--sdf-voxel", options.sdf_voxel, "voxel size of the collision grid (default: from the model size)")
+      ->check(frontier::option_checks::non_negative());
   app.add_option("--walk-radius", options.walk_radius,
-                 "walker clearance the collision grid must resolve (default 0.25, model units)");
+                 "walker clearance the collision grid must resolve (default 0.25, model units)")
+      ->check(frontier::option_checks::positive());
   app.add_flag("-q,--quiet", options.quiet, "no progress output");
   try {
     app.parse(argc, argv);
@@ -104,12 +112,23 @@ int main(int argc, char** argv) {
   options.portals = !no_portals;
   options.cell_trees = !no_cell_trees;
 
-  auto report = frontier::build_store(options);
-  if (!report) {
-    std::fprintf(stderr, "frontier-build: %s\n", report.status().to_string().c_str());
-    return report.status().code() == frontier::Status::Code::InvalidArgument ? 2 : 1;
+  // Running out of memory or threads is a failed build (exit 1, its temporaries removed on the
+  // way out), not an abort.
+  std::optional<frontier::Result<frontier::BuildReport>> report;
+  try {
+    report.emplace(frontier::build_store(options));
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "frontier-build: out of memory (a smaller --memory or fewer --threads may fit)\n");
+    return 1;
+  } catch (const std::system_error& e) {
+    std::fprintf(stderr, "frontier-build: %s\n", e.what());
+    return 1;
   }
-  const frontier::BuildReport& r = *report;
+  if (!*report) {
+    std::fprintf(stderr, "frontier-build: %s\n", report->status().to_string().c_str());
+    return report->status().code() == frontier::Status::Code::InvalidArgument ? 2 : 1;
+  }
+  const frontier::BuildReport& r = **report;
   if (!options.quiet) {
     const double per_tri = r.triangles > 0 ? static_cast<double>(r.store_bytes) / static_cast<double>(r.triangles) : 0.0;
     std::fprintf(stderr, "%s",

@@ -2,7 +2,8 @@
 // as users run them: exit 1 for bad input with a message naming the file, exit 2 for bad
 // options (the README's rule), whatever layer finds the problem (CLI11 has exit codes of its
 // own, 100 and up, that must not leak). And one rule for models with nothing in them: bad input
-// in every format, for the builder and the in-memory viewer alike.
+// in every format, for the builder and the in-memory viewer alike. Numeric options refuse NaN
+// and infinities and say what is allowed in words, and --threads is bounded (issue 43).
 #include "tests/input_files.h"
 #include "tests/process_util.h"
 #include "tests/test_files.h"
@@ -12,6 +13,7 @@
 
 #include <filesystem>
 #include <string>
+#include <thread>
 #include <vector>
 
 namespace frontier {
@@ -93,6 +95,93 @@ TEST(InputExitCodes, ViewerOptionErrorsExitTwo) {
     EXPECT_EQ(r.exit_code, 2) << fmt::format("{}", fmt::join(args, " ")) << ": " << r.err;
   }
   EXPECT_EQ(run_binary(FRONTIER_VIEW_PATH, {"--help"}, scratch()).exit_code, 0);
+}
+
+std::string args_text(const std::vector<std::string>& args) { return fmt::format("{}", fmt::join(args, " ")); }
+
+// --threads 100000 took 3.7 GB for a 64x64 frame and, in one run of two, a segmentation fault (a
+// worker's 16-bit index wrapped around); every program that has --threads bounds it.
+TEST(InputExitCodes, ThreadsAreBoundedInEveryProgram) {
+  const std::string in = testing::write_file(scratch() / "threads.off", testing::off_text(testing::grid_mesh(3)));
+  const std::string out = (scratch() / "threads.frontier").string();
+  const std::string most = std::to_string(4 * std::max(1u, std::thread::hardware_concurrency()));
+  for (const std::string& threads : {std::string("100000"), std::to_string(std::stoi(most) + 1), std::string("-1")}) {
+    const auto b = build({in, "-o", out, "--quiet", "--threads", threads});
+    EXPECT_EQ(b.exit_code, 2) << threads << ": " << b.err;
+    EXPECT_NE(b.err.find("--threads: must be 0 (all cores) to " + most), std::string::npos) << b.err;
+    EXPECT_FALSE(fs::exists(out));
+    const auto v = run_binary(FRONTIER_VIEW_PATH, {in, "--headless", "--size", "16x16", "--threads", threads}, scratch());
+    EXPECT_EQ(v.exit_code, 2) << threads << ": " << v.err;
+    EXPECT_NE(v.err.find("--threads: must be 0 (all cores) to " + most), std::string::npos) << v.err;
+  }
+  const auto b = build({in, "-o", out, "--quiet", "--threads", most});
+  EXPECT_EQ(b.exit_code, 0) << b.err;
+  const auto v = run_binary(FRONTIER_VIEW_PATH, {out, "--headless", "--size", "16x16", "--threads", most}, scratch());
+  EXPECT_EQ(v.exit_code, 0) << v.err;
+}
+
+// NaN and the infinities slipped past every range check (each comparison with NaN is false):
+// --frame-ms nan ran with exit 0. Every floating option of every program refuses them.
+TEST(InputExitCodes, NanAndInfinityAreRefusedInEveryFloatingOption) {
+  const std::string in = testing::write_file(scratch() / "finite.off", testing::off_text(testing::grid_mesh(3)));
+  const std::string out = (scratch() / "finite.frontier").string();
+  const std::vector<std::pair<std::string, std::vector<std::string>>> programs = {
+      {FRONTIER_VIEW_PATH, {"--frame-ms", "--min-sampled", "--pixel-error", "--eye-height", "--radius"}},
+      {FRONTIER_BUILD_PATH, {"--sdf-voxel", "--walk-radius"}},
+  };
+  for (const auto& [program, options] : programs) {
+    for (const std::string& option : options) {
+      for (const char* value : {"nan", "NaN", "-nan", "inf", "-inf", "infinity", "1e999"}) {
+        const std::vector<std::string> args = {in, "-o", out, "--headless", option, value};
+        // frontier-view has no -o and frontier-build no --headless: drop what the program lacks.
+        std::vector<std::string> used;
+        for (size_t i = 0; i < args.size(); ++i) {
+          if (program == FRONTIER_VIEW_PATH && args[i] == "-o") {
+            ++i;
+            continue;
+          }
+          if (program == FRONTIER_BUILD_PATH && args[i] == "--headless") continue;
+          used.push_back(args[i]);
+        }
+        const auto r = run_binary(program, used, scratch());
+        EXPECT_EQ(r.exit_code, 2) << args_text(used) << ": " << r.err;
+        EXPECT_NE(r.err.find(option + ": must be a finite number"), std::string::npos) << args_text(used) << ": " << r.err;
+        EXPECT_FALSE(fs::exists(out));
+      }
+    }
+  }
+  // frontier-gen's too.
+  const std::string ply = (scratch() / "finite.ply").string();
+  for (const std::vector<std::string>& args :
+       {std::vector<std::string>{"terrain", "--triangles", "100", "-o", ply, "--relief", "nan"},
+        {"terrain", "--triangles", "100", "-o", ply, "--spacing", "inf"},
+        {"building", "--triangles", "1000", "-o", ply, "--furniture", "nan"}}) {
+    const auto r = run_binary(proc::gen_binary(), args, scratch());
+    EXPECT_EQ(r.exit_code, 2) << args_text(args) << ": " << r.err;
+    EXPECT_NE(r.err.find(args[5] + ": must be a finite number"), std::string::npos) << args_text(args) << ": " << r.err;
+    EXPECT_FALSE(fs::exists(ply));
+  }
+}
+
+// Out of range said "Value 0 not in range 0.000000 to 1797693134862315708…" (300 digits).
+TEST(InputExitCodes, OutOfRangeSaysWhatIsAllowedInWords) {
+  const std::string in = testing::write_file(scratch() / "range.off", testing::off_text(testing::grid_mesh(3)));
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{"--frame-ms", "0"}, "--frame-ms: must be > 0, not 0"},
+      {{"--samples", "0"}, "--samples: must be > 0, not 0"},
+      {{"--pixel-error", "-1"}, "--pixel-error: must be >= 0, not -1"},
+      {{"--min-sampled", "2"}, "--min-sampled: must be between 0 and 1, not 2"},
+      {{"--png-every", "0"}, "--png-every: must be > 0, not 0"},
+      {{"--frames", "-3"}, "--frames: must be >= 0, not -3"},
+  };
+  for (const auto& [options, message] : cases) {
+    std::vector<std::string> args = {in, "--headless", "--size", "16x16"};
+    args.insert(args.end(), options.begin(), options.end());
+    const auto r = run_binary(FRONTIER_VIEW_PATH, args, scratch());
+    EXPECT_EQ(r.exit_code, 2) << args_text(args) << ": " << r.err;
+    EXPECT_NE(r.err.find(message), std::string::npos) << r.err;
+    EXPECT_EQ(r.err.find("not in range"), std::string::npos) << r.err;
+  }
 }
 
 // Every format with no primitives: a 0-byte file where the format allows it, else the smallest

@@ -44,6 +44,8 @@
 
 #include <cstdio>
 #include <cstring>
+#include <new>
+#include <system_error>
 
 using namespace frontier;
 
@@ -145,10 +147,7 @@ int run_store(ViewerOptions& o) {
   return walk_headless(o, **walk, start);
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  frontier::tune_allocator_for_walk();
+int run_viewer(int argc, char** argv) {
   CLI::App app{"frontier-view: walk through a store far larger than memory with exact per-pixel visibility\n"
                "(frustum casting on the CPU), paging in only the cells the view reaches, and report the\n"
                "working set every frame. Also renders a model file (NFF, PLY, OBJ, OFF, STL) in memory.\n"
@@ -165,4 +164,19 @@ int main(int argc, char** argv) {
   const bool store = is_store(o.scene_path);
   if (!store || o.in_memory) return run_model(o, store);
   return run_store(o);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  frontier::tune_allocator_for_walk();
+  // Running out of memory or threads ends the run with a message (exit 1), not an abort.
+  try {
+    return run_viewer(argc, argv);
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "frontier-view: out of memory (a smaller --cache, --size or --threads may fit)\n");
+  } catch (const std::system_error& e) {
+    std::fprintf(stderr, "frontier-view: %s\n", e.what());
+  }
+  return 1;
 }
