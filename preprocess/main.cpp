@@ -1,11 +1,13 @@
 // frontier-build: streams model files into one store file in bounded memory (preprocess/build.h).
 #include "preprocess/build.h"
+#include "preprocess/temp_dir.h"
 #include "src/core/option_checks.h"
 #include "src/core/progress.h"
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -13,6 +15,10 @@
 #include <optional>
 #include <regex>
 #include <system_error>
+#include <thread>
+
+#include <pthread.h>
+#include <unistd.h>
 
 namespace {
 
@@ -29,9 +35,44 @@ bool sidecar_says_walkable(const std::string& input) {
   return std::regex_search(head, std::regex(R"("walkable"\s*:\s*true)"));
 }
 
+const char* signal_name(int sig) {
+  switch (sig) {
+    case SIGINT: return "SIGINT";
+    case SIGTERM: return "SIGTERM";
+    case SIGHUP: return "SIGHUP";
+    default: return "a signal";
+  }
+}
+
+// SIGINT, SIGTERM and SIGHUP stop the build on a thread of their own, which removes what the
+// build wrote (its temporary directory and OUT.tmp: temp_dir.h), says so and exits with 128 + the
+// signal. Blocked in every other thread (threads made later inherit the mask), so none is stopped
+// half way; called before any thread starts.
+void stop_cleanly_on_signals() {
+  sigset_t stopping;
+  sigemptyset(&stopping);
+  for (int sig : {SIGINT, SIGTERM, SIGHUP}) sigaddset(&stopping, sig);
+  pthread_sigmask(SIG_BLOCK, &stopping, nullptr);
+  std::thread([stopping] {
+    int sig = 0;
+    if (sigwait(&stopping, &sig) != 0) return;
+    std::vector<frontier::Leftover> removed;
+    frontier::remove_own_temporaries(removed);
+    std::string what;
+    for (const frontier::Leftover& l : removed) {
+      what += fmt::format("{}{} ({:.1f} MB)", what.empty() ? "" : ", ", l.path, static_cast<double>(l.bytes) / 1e6);
+    }
+    std::fprintf(stderr, "\nfrontier-build: stopped by %s; %s\n", signal_name(sig),
+                 what.empty() ? "nothing written yet" : ("removed " + what).c_str());
+    std::fflush(stderr);
+    ::_exit(128 + sig);
+  }).detach();
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+  stop_cleanly_on_signals();
   frontier::tune_allocator_for_build();
   CLI::App app{
       "frontier-build: stream PLY/OBJ/OFF/NFF/STL models into one paged, compressed, checksummed k-d tree store.\n"
