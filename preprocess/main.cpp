@@ -72,8 +72,8 @@ void stop_cleanly_on_signals() {
 }  // namespace
 
 int main(int argc, char** argv) {
-  stop_cleanly_on_signals();
   frontier::tune_allocator_for_build();
+  stop_cleanly_on_signals();
   CLI::App app{
       "frontier-build: stream PLY/OBJ/OFF/NFF/STL models into one paged, compressed, checksummed k-d tree store.\n"
       "Memory stays within --memory (plus buffers): parts of the model that do not fit are split on disk\n"
@@ -81,7 +81,8 @@ int main(int argc, char** argv) {
       "A single input with a frontier-gen sidecar (MODEL.json beside MODEL) that lists rooms and portals\n"
       "also stores that cells-and-portals graph (section \"portals\", for frontier-view --visibility portals).\n"
       "Exit status: 0 ok; 1 bad input (a missing or unreadable file, a malformed model or one with no\n"
-      "primitives: the message names the file and line or byte offset) or a failed write; 2 bad options.",
+      "primitives: the message names the file and line or byte offset) or a failed write; 2 bad options;\n"
+      "128 + N when stopped by signal N (SIGINT, SIGTERM, SIGHUP), after removing what it wrote.",
       "frontier-build"};
   frontier::BuildOptions options;
   std::string memory = "1G", codec = "draco";
