@@ -9,6 +9,7 @@
 #include "data_gen/piece_stream.h"
 #include "data_gen/spheres.h"
 #include "data_gen/terrain.h"
+#include "src/core/option_checks.h"
 #include "src/io/camera_path.h"
 
 #include <CLI/CLI.hpp>
@@ -117,7 +118,7 @@ void add_building_command(CLI::App& app, BuildingCommand& b) {
   b.rooms = b.cmd->add_option("--rooms", b.params.shape.rooms, "rooms per floor (>= 1)")
                 ->check(CLI::Range(1, kMaxRoomsPerFloor));
   b.furniture = b.cmd->add_option("--furniture", b.params.detail.density, "furniture density (0 = bare rooms, 1 = furnished)")
-                    ->check(CLI::Range(0.0, kMaxFurniture));
+                    ->check(frontier::option_checks::between(0.0, kMaxFurniture));
   b.tessellation = b.cmd->add_option("--tessellation", b.params.detail.segments, "segments around round things (3 to 128)")
                        ->check(CLI::Range(kMinSegments, kMaxSegments));
   b.cmd->add_option("--triangles", b.target, "pick the free parameters to land within 5% of this many triangles")
@@ -214,8 +215,8 @@ void add_terrain_command(CLI::App& app, TerrainCommand& t) {
                      ->check(CLI::Range(uint64_t{1}, kMaxTerrainQuadsPerSide));
   t.cmd->add_option("--triangles", t.target, "square grid closest to this many triangles")
       ->check(CLI::Range(uint64_t{2}, uint64_t{8000000000}));
-  t.cmd->add_option("--spacing", t.params.spacing, "metres between grid points")->check(CLI::Range(1e-4, 1e4));
-  t.cmd->add_option("--relief", t.params.relief, "height amplitude / extent")->check(CLI::Range(0.0, 10.0));
+  t.cmd->add_option("--spacing", t.params.spacing, "metres between grid points")->check(frontier::option_checks::between(1e-4, 1e4));
+  t.cmd->add_option("--relief", t.params.relief, "height amplitude / extent")->check(frontier::option_checks::between(0.0, 10.0));
   t.cmd->add_option("--octaves", t.params.octaves, "noise octaves")->check(CLI::Range(1, 24));
   t.cmd->add_option("--tile", t.params.tile, "quads per tile side (one piece)")->check(CLI::Range(1, 1024));
   o_grid->excludes(t.cmd->get_option("--triangles"));
@@ -296,12 +297,12 @@ void add_path_command(CLI::App& app, PathCommand& p) {
   p.cmd->add_option("--kind", p.kind, "walk, orbit or fly")->required()->check(CLI::IsMember({"walk", "orbit", "fly"}));
   p.cmd->add_option("--frames", p.options.frames, "number of frames")->required()->check(CLI::Range(1, 100000000));
   p.cmd->add_option("--seed", p.options.seed, "random seed");
-  p.cmd->add_option("--step", p.options.step, "walk: metres per frame")->check(CLI::Range(1e-4, 100.0));
-  p.cmd->add_option("--vfov", p.options.vfov_deg, "vertical field of view, degrees")->check(CLI::Range(1.0, 170.0));
+  p.cmd->add_option("--step", p.options.step, "walk: metres per frame")->check(frontier::option_checks::between(1e-4, 100.0));
+  p.cmd->add_option("--vfov", p.options.vfov_deg, "vertical field of view, degrees")->check(frontier::option_checks::between(1.0, 170.0));
   p.cmd->add_option("--clearance", p.options.clearance,
                     "fly: metres kept between the eye and the highest geometry within that distance of it "
                     "(default: 1% of the model's larger horizontal side)")
-      ->check(CLI::Range(1e-6, 1e9));
+      ->check(frontier::option_checks::between(1e-6, 1e9));
   p.cmd->add_option("-o,--output", p.output, "output .cam file ('-' for stdout)")->required();
 }
 

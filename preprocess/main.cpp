@@ -1,14 +1,24 @@
 // frontier-build: streams model files into one store file in bounded memory (preprocess/build.h).
 #include "preprocess/build.h"
+#include "preprocess/temp_dir.h"
+#include "src/core/option_checks.h"
 #include "src/core/progress.h"
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <new>
+#include <optional>
 #include <regex>
+#include <system_error>
+#include <thread>
+
+#include <pthread.h>
+#include <unistd.h>
 
 namespace {
 
@@ -25,10 +35,45 @@ bool sidecar_says_walkable(const std::string& input) {
   return std::regex_search(head, std::regex(R"("walkable"\s*:\s*true)"));
 }
 
+const char* signal_name(int sig) {
+  switch (sig) {
+    case SIGINT: return "SIGINT";
+    case SIGTERM: return "SIGTERM";
+    case SIGHUP: return "SIGHUP";
+    default: return "a signal";
+  }
+}
+
+// SIGINT, SIGTERM and SIGHUP stop the build on a thread of their own, which removes what the
+// build wrote (its temporary directory and OUT.tmp: temp_dir.h), says so and exits with 128 + the
+// signal. Blocked in every other thread (threads made later inherit the mask), so none is stopped
+// half way; called before any thread starts.
+void stop_cleanly_on_signals() {
+  sigset_t stopping;
+  sigemptyset(&stopping);
+  for (int sig : {SIGINT, SIGTERM, SIGHUP}) sigaddset(&stopping, sig);
+  pthread_sigmask(SIG_BLOCK, &stopping, nullptr);
+  std::thread([stopping] {
+    int sig = 0;
+    if (sigwait(&stopping, &sig) != 0) return;
+    std::vector<frontier::Leftover> removed;
+    frontier::remove_own_temporaries(removed);
+    std::string what;
+    for (const frontier::Leftover& l : removed) {
+      what += fmt::format("{}{} ({:.1f} MB)", what.empty() ? "" : ", ", l.path, static_cast<double>(l.bytes) / 1e6);
+    }
+    std::fprintf(stderr, "\nfrontier-build: stopped by %s; %s\n", signal_name(sig),
+                 what.empty() ? "nothing written yet" : ("removed " + what).c_str());
+    std::fflush(stderr);
+    ::_exit(128 + sig);
+  }).detach();
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   frontier::tune_allocator_for_build();
+  stop_cleanly_on_signals();
   CLI::App app{
       "frontier-build: stream PLY/OBJ/OFF/NFF/STL models into one paged, compressed, checksummed k-d tree store.\n"
       "Memory stays within --memory (plus buffers): parts of the model that do not fit are split on disk\n"
@@ -36,7 +81,8 @@ int main(int argc, char** argv) {
       "A single input with a frontier-gen sidecar (MODEL.json beside MODEL) that lists rooms and portals\n"
       "also stores that cells-and-portals graph (section \"portals\", for frontier-view --visibility portals).\n"
       "Exit status: 0 ok; 1 bad input (a missing or unreadable file, a malformed model or one with no\n"
-      "primitives: the message names the file and line or byte offset) or a failed write; 2 bad options.",
+      "primitives: the message names the file and line or byte offset) or a failed write; 2 bad options;\n"
+      "128 + N when stopped by signal N (SIGINT, SIGTERM, SIGHUP), after removing what it wrote.",
       "frontier-build"};
   frontier::BuildOptions options;
   std::string memory = "1G", codec = "draco";
@@ -61,8 +107,10 @@ int main(int argc, char** argv) {
                  "borders stop it) with a measured object-space error bound, for frontier-view to draw far and missing "
                  "subtrees; 0: no proxies (a faster build, but a walk shows nothing where cells are not yet in)")
       ->default_val(frontier::kDefaultProxyTriangles);
-  app.add_option("--threads", options.threads, "threads that build and encode parts (0: all cores); reading and "
-                 "partitioning use a reader thread besides")->default_val(0);
+  app.add_option("--threads", options.threads, "threads that build and encode parts (0: all cores; at most 4 per "
+                 "hardware thread); reading and partitioning use a reader thread besides")
+      ->default_val(0)
+      ->check(frontier::option_checks::thread_count());
   app.add_flag("--walkable", options.walkable,
                "add a sparse OpenVDB distance grid for walk-mode collision, built out of core (spilled beside "
                "the output) and stored as 64^3-voxel brick pages (also when a MODEL.json sidecar says "
@@ -80,9 +128,11 @@ int main(int argc, char** argv) {
                  "(for the rasterizing visibility classes, which draw triangles only)")
       ->check(CLI::Range(3, 1024));
   app.add_flag("--no-portals", no_portals, "do not store the cells and portals of a MODEL.json sidecar");
-  app.add_option("--sdf-voxel", options.sdf_voxel, "voxel size of the collision grid (default: from the model size)");
+  app.add_option("--sdf-voxel", options.sdf_voxel, "voxel size of the collision grid (default: from the model size)")
+      ->check(frontier::option_checks::non_negative());
   app.add_option("--walk-radius", options.walk_radius,
-                 "walker clearance the collision grid must resolve (default 0.25, model units)");
+                 "walker clearance the collision grid must resolve (default 0.25, model units)")
+      ->check(frontier::option_checks::positive());
   app.add_flag("-q,--quiet", options.quiet, "no progress output");
   try {
     app.parse(argc, argv);
@@ -104,12 +154,23 @@ int main(int argc, char** argv) {
   options.portals = !no_portals;
   options.cell_trees = !no_cell_trees;
 
-  auto report = frontier::build_store(options);
-  if (!report) {
-    std::fprintf(stderr, "frontier-build: %s\n", report.status().to_string().c_str());
-    return report.status().code() == frontier::Status::Code::InvalidArgument ? 2 : 1;
+  // Running out of memory or threads is a failed build (exit 1, its temporaries removed on the
+  // way out), not an abort.
+  std::optional<frontier::Result<frontier::BuildReport>> report;
+  try {
+    report.emplace(frontier::build_store(options));
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "frontier-build: out of memory (a smaller --memory or fewer --threads may fit)\n");
+    return 1;
+  } catch (const std::system_error& e) {
+    std::fprintf(stderr, "frontier-build: %s\n", e.what());
+    return 1;
   }
-  const frontier::BuildReport& r = *report;
+  if (!*report) {
+    std::fprintf(stderr, "frontier-build: %s\n", report->status().to_string().c_str());
+    return report->status().code() == frontier::Status::Code::InvalidArgument ? 2 : 1;
+  }
+  const frontier::BuildReport& r = **report;
   if (!options.quiet) {
     const double per_tri = r.triangles > 0 ? static_cast<double>(r.store_bytes) / static_cast<double>(r.triangles) : 0.0;
     std::fprintf(stderr, "%s",

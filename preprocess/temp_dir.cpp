@@ -1,12 +1,15 @@
 // A build's temporaries and their locks (contract and layout in temp_dir.h).
 #include "preprocess/temp_dir.h"
 
+#include "store/page_format.h"
+
 #include <fmt/format.h>
 
 #include <cerrno>
 #include <chrono>
 #include <cstring>
 #include <filesystem>
+#include <mutex>
 #include <utility>
 
 #include <fcntl.h>
@@ -30,6 +33,45 @@ constexpr auto kUnlockedGrace = std::chrono::seconds(10);
 bool is_temp_dir_name(const std::string& name) {
   const size_t at = name.rfind(".build-");
   return name.size() > 1 && name[0] == '.' && at != std::string::npos && at > 0 && name.size() == at + 7 + 6;
+}
+
+// The temporaries this process holds now, for remove_own_temporaries: the directories, and each
+// OUT.tmp with the descriptor that holds its lock. Each is made and enrolled under the mutex, so
+// that once remove_own_temporaries holds it nothing new appears. Never destroyed: a signal may
+// come while the process exits.
+struct Registry {
+  std::mutex mutex;
+  std::vector<std::string> dirs;
+  std::vector<std::pair<std::string, int>> staging;
+};
+
+Registry& registry() {
+  static Registry* r = new Registry;
+  return *r;
+}
+
+void forget_dir(const std::string& path) {
+  Registry& r = registry();
+  std::lock_guard<std::mutex> hold(r.mutex);
+  std::erase(r.dirs, path);
+}
+
+void forget_staging(int fd) {
+  Registry& r = registry();
+  std::lock_guard<std::mutex> hold(r.mutex);
+  std::erase_if(r.staging, [fd](const auto& s) { return s.second == fd; });
+}
+
+// Whether `fd` is the file at `path` now (not one removed and made again under its name).
+bool is_named(int fd, const std::string& path) {
+  struct stat held {}, named {};
+  return ::fstat(fd, &held) == 0 && ::lstat(path.c_str(), &named) == 0 && held.st_dev == named.st_dev &&
+         held.st_ino == named.st_ino;
+}
+
+std::string folder_of(const std::string& file) {
+  const fs::path p(file);
+  return p.has_parent_path() ? p.parent_path().string() : std::string(".");
 }
 
 bool older_than_grace(const fs::path& p) {
@@ -119,11 +161,15 @@ Result<BuildTempDir> BuildTempDir::create(const std::string& dir, const std::str
                                           std::vector<Leftover>& removed) {
   remove_dead_temp_dirs(dir, removed);
   std::string pattern = (fs::path(dir) / ("." + fs::path(output).filename().string() + ".build-XXXXXX")).string();
-  if (::mkdtemp(pattern.data()) == nullptr) {
-    return Status::io_error(fmt::format("{}: cannot create a temporary directory: {}", pattern, std::strerror(errno)));
-  }
   BuildTempDir t;
-  t.path_ = pattern;  // from here on the destructor removes it
+  {
+    std::lock_guard<std::mutex> hold(registry().mutex);
+    if (::mkdtemp(pattern.data()) == nullptr) {
+      return Status::io_error(fmt::format("{}: cannot create a temporary directory: {}", pattern, std::strerror(errno)));
+    }
+    t.path_ = pattern;  // from here on the destructor removes it
+    registry().dirs.push_back(pattern);
+  }
   const std::string lock = t.file(kLockName);
   t.lock_fd_ = ::open(lock.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
   if (t.lock_fd_ < 0 || ::flock(t.lock_fd_, LOCK_EX | LOCK_NB) != 0) {
@@ -141,19 +187,78 @@ BuildTempDir::BuildTempDir(BuildTempDir&& o) noexcept
 
 BuildTempDir::~BuildTempDir() {
   std::error_code ec;
-  if (!path_.empty()) fs::remove_all(path_, ec);  // before the lock goes: no one else removes it
+  if (!path_.empty()) {
+    forget_dir(path_);
+    fs::remove_all(path_, ec);  // before the lock goes: no one else removes it
+  }
   if (lock_fd_ >= 0) ::close(lock_fd_);
 }
 
 std::string BuildTempDir::file(const std::string& name) const { return (fs::path(path_) / name).string(); }
 
+void remove_dead_staging_files(const std::string& dir, std::vector<Leftover>& removed) {
+  std::error_code ec;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const fs::path path = it->path();
+    const std::string name = path.filename().string();
+    std::error_code type_ec;
+    if (name.size() <= 4 || !name.ends_with(".tmp") || !fs::is_regular_file(fs::symlink_status(path, type_ec))) {
+      continue;
+    }
+    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NOFOLLOW | O_NONBLOCK);
+    if (fd < 0) continue;
+    // Locked: a live build's. Without the magic: not a store (an empty one may be a live build's
+    // between creating and locking it), so not ours to judge.
+    char head[store::kMagic.size()] = {};
+    struct stat st {};
+    if (::flock(fd, LOCK_EX | LOCK_NB) == 0 && ::pread(fd, head, sizeof head, 0) == static_cast<ssize_t>(sizeof head) &&
+        std::memcmp(head, store::kMagic.data(), sizeof head) == 0 && ::fstat(fd, &st) == 0 &&
+        is_named(fd, path.string()) && ::unlink(path.c_str()) == 0) {
+      removed.push_back({path.string(), static_cast<uint64_t>(st.st_size)});
+    }
+    ::close(fd);
+  }
+}
+
+void remove_own_temporaries(std::vector<Leftover>& removed) {
+  Registry& r = registry();
+  r.mutex.lock();  // never unlocked: the process exits next
+  for (const auto& [path, fd] : r.staging) {
+    struct stat st {};
+    // After the rename the lock holds OUT, and OUT.tmp, if any, is another build's.
+    if (::fstat(fd, &st) == 0 && is_named(fd, path) && ::unlink(path.c_str()) == 0) {
+      removed.push_back({path, static_cast<uint64_t>(st.st_size)});
+    }
+  }
+  for (const std::string& dir : r.dirs) {
+    Leftover leftover{dir, bytes_under(dir)};
+    // The build's threads may still be making files in it: go on until it is gone.
+    std::error_code ec;
+    for (int attempt = 0; attempt < 100 && fs::exists(dir, ec); ++attempt) fs::remove_all(dir, ec);
+    if (!fs::exists(dir, ec)) removed.push_back(std::move(leftover));
+  }
+}
+
 Result<StagingLock> StagingLock::claim(const std::string& output, std::vector<Leftover>& removed) {
+  remove_dead_staging_files(folder_of(output), removed);
   const std::string path = output + ".tmp";
   StagingLock l;
-  l.fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0644);
-  if (l.fd_ < 0) return Status::io_error(fmt::format("{}: cannot create: {}", path, std::strerror(errno)));
-  if (::flock(l.fd_, LOCK_EX | LOCK_NB) != 0) {
-    return Status::io_error(fmt::format("{}: another frontier-build is writing {} now", path, output));
+  // Another build may remove a dead store at `path` between our open and our lock; the lock then
+  // holds a file no longer there, and the path is opened again.
+  for (int attempt = 0;; ++attempt) {
+    {
+      std::lock_guard<std::mutex> hold(registry().mutex);
+      l.fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0644);
+      if (l.fd_ < 0) return Status::io_error(fmt::format("{}: cannot create: {}", path, std::strerror(errno)));
+      registry().staging.emplace_back(path, l.fd_);
+    }
+    if (::flock(l.fd_, LOCK_EX | LOCK_NB) != 0) {
+      return Status::io_error(fmt::format("{}: another frontier-build is writing {} now", path, output));
+    }
+    if (is_named(l.fd_, path) || attempt == 2) break;
+    forget_staging(l.fd_);
+    ::close(l.fd_);
+    l.fd_ = -1;
   }
   struct stat st {};
   if (::fstat(l.fd_, &st) == 0 && st.st_size > 0) {  // a dead build's store, cut short
@@ -166,7 +271,10 @@ Result<StagingLock> StagingLock::claim(const std::string& output, std::vector<Le
 StagingLock::StagingLock(StagingLock&& o) noexcept : fd_(std::exchange(o.fd_, -1)) {}
 
 StagingLock::~StagingLock() {
-  if (fd_ >= 0) ::close(fd_);
+  if (fd_ >= 0) {
+    forget_staging(fd_);
+    ::close(fd_);
+  }
 }
 
 }  // namespace frontier

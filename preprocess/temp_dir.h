@@ -12,7 +12,13 @@
 // A directory or OUT.tmp whose lock can be taken belongs to no live build: it is a leftover, and
 // the next build that looks removes it and says so. One that is locked is never touched. A
 // directory without a lock file (made by a build killed between mkdtemp and the lock, or by a
-// frontier-build older than the lock) is a leftover once it is 10 s old.
+// frontier-build older than the lock) is a leftover once it is 10 s old. Any `*.tmp` beside OUT
+// that starts with the store magic is a store being written by some build (of any output): it
+// is a leftover when its lock can be taken. A `*.tmp` without the magic is not ours and is left.
+//
+// A build stopped by a signal removes its own temporaries before it exits (remove_own_temporaries,
+// called from the thread that handles the signal): every live BuildTempDir and StagingLock of the
+// process is registered until its destructor runs.
 #pragma once
 
 #include "src/core/status.h"
@@ -71,9 +77,20 @@ Status check_free_space(const std::string& dir, uint64_t needed, const std::stri
 // Whether two existing paths are on one file system (false when either cannot be looked at).
 bool same_file_system(const std::string& a, const std::string& b);
 
-// OUT.tmp, claimed for this build: created if missing and locked until destruction. A leftover
-// of a dead build there is emptied (and reported in `removed`); one a live build holds makes
-// claim() fail (IoError naming it): two builds of one output at once would write one file.
+// Removes the stores dead builds were writing in `dir` (`*.tmp` files that start with the store
+// magic and whose lock can be taken), appending them to `removed`.
+void remove_dead_staging_files(const std::string& dir, std::vector<Leftover>& removed);
+
+// Removes what this process's live BuildTempDirs and StagingLocks hold (the directories, and
+// OUT.tmp while it is still the file the lock holds), appending them to `removed`. Leaves the
+// registry locked: any thread that would make or release a temporary after this waits for ever.
+// For the thread that handles a stopping signal; the process must _exit right after.
+void remove_own_temporaries(std::vector<Leftover>& removed);
+
+// OUT.tmp, claimed for this build: created if missing and locked until destruction. First the
+// stores dead builds left in OUT's folder are removed (remove_dead_staging_files, reported in
+// `removed`); one a live build holds at OUT.tmp makes claim() fail (IoError naming it): two builds
+// of one output at once would write one file.
 class StagingLock {
  public:
   static Result<StagingLock> claim(const std::string& output, std::vector<Leftover>& removed);

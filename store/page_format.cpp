@@ -59,10 +59,10 @@ std::array<uint8_t, kHeaderSize> encode_header(const Header& header) {
 Result<Header> decode_header(std::span<const uint8_t> bytes, const std::string& file) {
   if (bytes.size() != kHeaderSize) return Status::corruption(file + ": header truncated");
   if (!std::equal(kMagic.begin(), kMagic.end(), bytes.begin())) {
-    return Status::corruption(file + ": not a frontier store (bad header magic)");
+    return Status::corruption(file + ": damaged header (bytes 0-7 are not the magic FRNTSTOR)");
   }
   if (checksum(bytes.first(16)) != get_u64(bytes.data() + 16)) {
-    return Status::corruption(file + ": header checksum mismatch");
+    return Status::corruption(file + ": damaged header (the checksum at byte 16 does not match bytes 0-15)");
   }
   Header h{get_u32(bytes.data() + 8), get_u32(bytes.data() + 12)};
   if (h.version > kFormatVersion || h.version == 0) {

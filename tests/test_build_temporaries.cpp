@@ -1,5 +1,6 @@
 // frontier-build's temporaries (preprocess/temp_dir.h): a killed build's leftovers are removed by
-// the next build, which says so; a live build's are never touched; --tmp-dir puts them elsewhere
+// the next build, which says so, whatever output that build writes; a live build's are never
+// touched; a build stopped by SIGTERM or SIGINT removes its own; --tmp-dir puts them elsewhere
 // and is checked like any option.
 #include "tests/process_util.h"
 #include "tests/test_files.h"
@@ -95,6 +96,82 @@ TEST(BuildTemporaries, KilledBuildsLeftoversAreRemovedByTheNextBuildWhichSaysSo)
   EXPECT_FALSE(fs::exists(temps[0]));
   EXPECT_FALSE(fs::exists(out.string() + ".tmp"));
   EXPECT_TRUE(temp_dirs(dir).empty());
+}
+
+// Waits until the build `pid` writing `out` in `dir` has spilled something and started OUT.tmp.
+bool wait_until_spilling(const fs::path& dir, const fs::path& out) {
+  const auto start = std::chrono::steady_clock::now();
+  while (std::chrono::steady_clock::now() - start < std::chrono::seconds(60)) {
+    const std::vector<fs::path> temps = temp_dirs(dir);
+    std::error_code ec;
+    if (temps.size() == 1 && holds_files(temps[0]) && fs::file_size(out.string() + ".tmp", ec) >= 8 && !ec) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  return false;
+}
+
+// Issue 43, item 1: the store a killed build was writing stayed through any number of builds of
+// other outputs. Any dead build's `*.tmp` store beside the output is removed; a live build's, and
+// a `*.tmp` that is not a store, are left.
+TEST(BuildTemporaries, KilledBuildsStoreIsRemovedByABuildOfAnotherOutput) {
+  const std::string in = terrain();
+  const fs::path dir = scratch() / "killed_other";
+  fs::create_directories(dir);
+  const fs::path a = dir / "a.frontier", b = dir / "b.frontier";
+  const auto so = scratch() / "kill_other_out", se = scratch() / "kill_other_err";
+  const pid_t pid = proc::spawn(FRONTIER_BUILD_PATH, {in, "-o", a.string(), "--quiet", "--memory", "16M"}, so, se);
+  const bool spilling = wait_until_spilling(dir, a);
+  ::kill(pid, SIGKILL);
+  const auto killed = proc::finish(pid, so, se);
+  ASSERT_TRUE(spilling) << killed.err;
+  ASSERT_EQ(killed.exit_code, 128 + SIGKILL) << killed.err;
+  const std::string dead_store = a.string() + ".tmp";
+  ASSERT_TRUE(fs::exists(dead_store));
+  // A live build's store (locked) and a file of someone else's.
+  const std::string live_store = (dir / "c.frontier.tmp").string(), foreign = (dir / "notes.tmp").string();
+  std::ofstream(live_store) << "FRNTSTOR and the rest of a live build's store";
+  std::ofstream(foreign) << "not a store";
+  const int live_fd = ::open(live_store.c_str(), O_RDONLY);
+  ASSERT_EQ(::flock(live_fd, LOCK_EX | LOCK_NB), 0);
+
+  const auto next = run_binary(FRONTIER_BUILD_PATH, {testing::spd("rings"), "-o", b.string(), "--quiet"}, scratch());
+  ASSERT_EQ(next.exit_code, 0) << next.err;
+  EXPECT_NE(next.err.find("removed leftovers of a killed build: " + dead_store + " ("), std::string::npos) << next.err;
+  EXPECT_FALSE(fs::exists(dead_store));
+  EXPECT_TRUE(temp_dirs(dir).empty());
+  EXPECT_TRUE(fs::exists(b));
+  EXPECT_EQ(proc::slurp(live_store), "FRNTSTOR and the rest of a live build's store");
+  EXPECT_EQ(proc::slurp(foreign), "not a store");
+  EXPECT_EQ(next.err.find("c.frontier.tmp"), std::string::npos) << next.err;
+  EXPECT_EQ(next.err.find("notes.tmp"), std::string::npos) << next.err;
+  ::close(live_fd);
+}
+
+// Issue 43, item 2: SIGTERM (timeout, kill) and SIGINT (Ctrl-C) left the spill and OUT.tmp. The
+// build removes what it wrote, says so and exits with 128 + the signal.
+TEST(BuildTemporaries, StoppedBuildRemovesWhatItWroteAndSaysSo) {
+  const std::string in = terrain();
+  for (const int sig : {SIGTERM, SIGINT}) {
+    const std::string name = sig == SIGTERM ? "SIGTERM" : "SIGINT";
+    SCOPED_TRACE(name);
+    const fs::path dir = scratch() / ("stopped_" + name);
+    fs::create_directories(dir);
+    const fs::path out = dir / "s.frontier";
+    const auto so = scratch() / "stop_out", se = scratch() / "stop_err";
+    const pid_t pid = proc::spawn(FRONTIER_BUILD_PATH, {in, "-o", out.string(), "--quiet", "--memory", "16M"}, so, se);
+    const bool spilling = wait_until_spilling(dir, out);
+    const std::vector<fs::path> temps = temp_dirs(dir);
+    ::kill(pid, sig);
+    const auto stopped = proc::finish(pid, so, se);
+    ASSERT_TRUE(spilling) << stopped.err;
+    EXPECT_EQ(stopped.exit_code, 128 + sig) << stopped.err;
+    EXPECT_NE(stopped.err.find("frontier-build: stopped by " + name + "; removed "), std::string::npos) << stopped.err;
+    ASSERT_EQ(temps.size(), 1u);
+    EXPECT_NE(stopped.err.find(temps[0].string() + " ("), std::string::npos) << stopped.err;
+    EXPECT_NE(stopped.err.find(out.string() + ".tmp ("), std::string::npos) << stopped.err;
+    std::error_code ec;
+    EXPECT_TRUE(fs::is_empty(dir, ec)) << "left in " << dir;
+  }
 }
 
 TEST(BuildTemporaries, OnlyDeadBuildsTemporariesAreRemoved) {

@@ -42,21 +42,48 @@
 
 #include <CLI/CLI.hpp>
 
+#include <cctype>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
+#include <new>
+#include <system_error>
 
 using namespace frontier;
 
 namespace {
 
-// A store file starts with the store magic (store/FORMAT.md); anything else is a model file.
+// A store is a file that starts with the store magic (store/FORMAT.md) or is named *.frontier
+// (any case): a store whose header is damaged is still opened as one, so that the store reader
+// says what is wrong with it instead of "unknown model format". Anything else is a model file.
 bool is_store(const std::string& path) {
+  std::string extension = std::filesystem::path(path).extension().string();
+  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (extension == ".frontier") return true;
   std::FILE* f = std::fopen(path.c_str(), "rb");
   if (f == nullptr) return false;
   char magic[8] = {};
   const size_t got = std::fread(magic, 1, sizeof magic, f);
   std::fclose(f);
   return got == sizeof magic && std::memcmp(magic, store::kMagic.data(), sizeof magic) == 0;
+}
+
+// Options that only the in-memory methods read, given for a paged store (which is walked by
+// frustum casting or a --visibility class whatever they say). Returns the message for exit code
+// 2, else empty.
+std::string options_a_store_ignores(const CLI::App& app, const ViewerOptions& o) {
+  if (app.count("--method") > 0 && o.method_text != "frustum") {
+    return "--method " + o.method_text + " renders a model file, or a store with --in-memory; a store is walked by "
+           "frustum casting (--visibility picks a rasterizing class instead)";
+  }
+  for (const char* option : {"--order", "--bound-slices", "--back-sample-culling", "--tessellation",
+                             "--bsp-candidates", "--aa", "--bsp-stats"}) {
+    if (app.count(option) > 0) {
+      return std::string(option) + " is read by --method imr, tessellated, mesa or bsp, which render a model file "
+             "or a store with --in-memory";
+    }
+  }
+  return {};
 }
 
 // A model file (or a store with --in-memory): one headless frame; the walk options need a store.
@@ -145,10 +172,7 @@ int run_store(ViewerOptions& o) {
   return walk_headless(o, **walk, start);
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  frontier::tune_allocator_for_walk();
+int run_viewer(int argc, char** argv) {
   CLI::App app{"frontier-view: walk through a store far larger than memory with exact per-pixel visibility\n"
                "(frustum casting on the CPU), paging in only the cells the view reaches, and report the\n"
                "working set every frame. Also renders a model file (NFF, PLY, OBJ, OFF, STL) in memory.\n"
@@ -162,7 +186,27 @@ int main(int argc, char** argv) {
     return code == 0 ? 0 : 2;
   }
   if (const std::string why = finish_options(app, o); !why.empty()) return bad_option(why);
+  // A missing scene is bad input (exit 1) before any option that only fits a store or a model.
+  if (std::error_code ec; !std::filesystem::exists(o.scene_path, ec) && !ec) {
+    return fail(Status::not_found(o.scene_path + ": no such file"));
+  }
   const bool store = is_store(o.scene_path);
   if (!store || o.in_memory) return run_model(o, store);
+  if (const std::string why = options_a_store_ignores(app, o); !why.empty()) return bad_option(why);
   return run_store(o);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  frontier::tune_allocator_for_walk();
+  // Running out of memory or threads ends the run with a message (exit 1), not an abort.
+  try {
+    return run_viewer(argc, argv);
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "frontier-view: out of memory (a smaller --cache, --size or --threads may fit)\n");
+  } catch (const std::system_error& e) {
+    std::fprintf(stderr, "frontier-view: %s\n", e.what());
+  }
+  return 1;
 }

@@ -23,6 +23,11 @@ double ms_between(std::chrono::steady_clock::time_point a, std::chrono::steady_c
 
 struct Model {
   Scene scene;
+  // What the automatic camera frames: the scene's bounds, or for a store the bounds it records,
+  // those of the model it was built from, as the paged frame uses (a Draco or meshopt store's
+  // decoded triangles sit on its lattice, within half a step of them: framing those moved the
+  // camera, and edges between triangles, by a fraction of a pixel).
+  Aabb framed;
   KdTree tree;
   double load_ms = 0.0, build_ms = 0.0;
 };
@@ -36,8 +41,10 @@ Status load_model(const ViewerOptions& o, bool store, Model& m) {
   if (store) {
     auto model = StoreModel::open(o.scene_path);
     if (Status s = model ? (*model)->load_all(m.scene, m.tree, build) : model.status(); !s) return s;
+    m.framed = (*model)->info().bounds;
   } else {
     if (Status s = load_scene(o.scene_path, m.scene); !s) return s;
+    m.framed = m.scene.bounds();
   }
   const auto t1 = std::chrono::steady_clock::now();
   if (!store) m.tree = KdTree::build(m.scene, build);
@@ -47,9 +54,10 @@ Status load_model(const ViewerOptions& o, bool store, Model& m) {
   return Status::ok();
 }
 
-// The model's camera at its resolution (else one framing the whole scene, 512x512); --size wins.
-View model_view(const ViewerOptions& o, const Scene& scene) {
-  const Camera camera = scene.camera ? *scene.camera : automatic_camera(scene.bounds());
+// The model's camera at its resolution (else one framing the whole model, 512x512); --size wins.
+View model_view(const ViewerOptions& o, const Model& model) {
+  const Scene& scene = model.scene;
+  const Camera camera = scene.camera ? *scene.camera : automatic_camera(model.framed);
   int width = camera.width > 0 ? camera.width : 512, height = camera.height > 0 ? camera.height : 512;
   if (o.width > 0) {
     width = o.width;
@@ -63,7 +71,7 @@ View model_view(const ViewerOptions& o, const Scene& scene) {
 int render_model(const ViewerOptions& o, bool store) {
   Model model;
   if (Status s = load_model(o, store, model); !s) return fail(s);
-  const View view = model_view(o, model.scene);
+  const View view = model_view(o, model);
   const ViewMethod& method = pick_method(o);
   if (method.check != nullptr) {
     if (const std::string why = method.check(o); !why.empty()) return bad_option(why);

@@ -2,6 +2,7 @@
 // frame, then the methods and visibility classes.
 #include "viewer/options.h"
 
+#include "src/core/option_checks.h"
 #include "viewer/methods.h"
 
 #include <cstdio>
@@ -9,22 +10,25 @@
 namespace frontier {
 namespace {
 
+namespace checks = option_checks;
+
 void add_scene_options(CLI::App& app, ViewerOptions& o) {
   app.add_option("SCENE", o.scene_path, "store file (frontier-build) or model file (.nff, .ply, .obj, .off)")
       ->required();
   app.add_flag("--headless", o.headless, "no window: walk --path, or render one frame");
   app.add_option("--size", o.size_text, "image size WxH (default 640x480 for stores; a model's own resolution or 512x512)");
-  app.add_option("--threads", o.threads, "render threads (0 = all cores)")->check(CLI::NonNegativeNumber);
+  app.add_option("--threads", o.threads, "render threads (0 = all cores; at most 4 per hardware thread)")
+      ->check(checks::thread_count());
   auto* peg_time = app.add_option("--frame-ms", o.frame_ms, "peg frame time: stop each frame after MS milliseconds (window default: 50)")
-                       ->check(CLI::PositiveNumber);
+                       ->check(checks::positive());
   auto* peg_samples = app.add_option("--samples", o.samples, "peg sample count: stop each frame after N samples")
-                          ->check(CLI::PositiveNumber);
+                          ->check(checks::positive());
   peg_time->excludes(peg_samples);
   app.add_option("--min-sampled", o.min_sampled,
                  "store, with a pegged frame time: a moving frame goes on past its time (at most one more frame "
                  "time, from the peg or from when it was reached if later) until this share of its pixels is "
                  "sampled; 0 = pure frame-time pegging (default 0.5)")
-      ->check(CLI::Range(0.0, 1.0));
+      ->check(checks::between(0.0, 1.0));
 }
 
 void add_store_options(CLI::App& app, ViewerOptions& o) {
@@ -39,10 +43,10 @@ void add_store_options(CLI::App& app, ViewerOptions& o) {
                  "(at the node's point nearest the eye), and missing cells by their nearest loaded ancestor's proxy "
                  "while a budgeted frame waits for their pages; 0 = exact (every cell from its page). A still camera "
                  "refines to 0. Default 1, and 0 with --sync-paging")
-      ->check(CLI::NonNegativeNumber);
+      ->check(checks::non_negative());
   app.add_option("--path", o.path_file, "store, headless: camera path (.cam, from frontier-gen path)");
   app.add_option("--frames", o.frames, "frames to render (default: the path's length; window: until closed)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(checks::non_negative());
   app.add_option("--report", o.report_path, "store: write one JSON object per frame, then a summary line");
   app.add_option("--png-dir", o.png_dir, "store, headless: write some frames as PNG into DIR");
   app.add_option("--ids-dir", o.ids_dir,
@@ -50,15 +54,15 @@ void add_store_options(CLI::App& app, ViewerOptions& o) {
                  "DIR/frame_NNNNN.ids (the --ids layout, numbered like --png-dir from 00000); DIR is created, and "
                  "one that cannot be created or written is an error (exit 1)");
   app.add_option("--png-every", o.png_every, "with --png-dir: every Nth frame (default: frames/4) and the last")
-      ->check(CLI::PositiveNumber);
+      ->check(checks::positive());
   app.add_flag("--oracle", o.oracle, "store: count oracle_cells, the cells exact per-pixel rays pass before their first hit");
   app.add_flag("--sync-paging", o.sync_paging,
                "store: wait for every page a frame needs (exact, complete frames; a frame whose cells exceed "
                "--cache is rendered in passes and reported as thrashing, with the --cache it needs)");
   app.add_flag("--walk", o.walk, "store: walk mode along the path (gravity, collision); the store must be --walkable");
-  app.add_option("--eye-height", o.eye_height, "walk mode: eye height above the floor")->check(CLI::PositiveNumber);
+  app.add_option("--eye-height", o.eye_height, "walk mode: eye height above the floor")->check(checks::positive());
   app.add_option("--radius", o.radius, "walk mode: clearance kept from geometry (default: the store's)")
-      ->check(CLI::PositiveNumber);
+      ->check(checks::positive());
   app.add_flag("--in-memory", o.in_memory, "store: decode every page into memory and render like a model file");
 }
 

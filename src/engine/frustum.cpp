@@ -18,6 +18,7 @@
 
 #include <algorithm>
 #include <array>
+#include <limits>
 
 namespace frontier {
 
@@ -43,6 +44,9 @@ struct FrustumCaster::Arena {
 FrustumCaster::FrustumCaster(const Scene& scene, const KdTree& tree, const Shader& shader, int threads)
     : scene_(scene), tree_(tree), shader_(shader) {
   threads_ = threads > 0 ? threads : tbb::info::default_concurrency();
+  // A job names the worker whose list it reads in 16 bits (Job::arena, Worker::index): one
+  // worker more than that would wrap around to another's list and read past its end.
+  threads_ = std::min(threads_, int{std::numeric_limits<uint16_t>::max()});
   arena_ = std::make_unique<Arena>(threads_);
   workers_.resize(static_cast<size_t>(threads_) + 1);
   for (size_t k = 0; k < workers_.size(); ++k) {
