@@ -167,6 +167,7 @@ ProxyMesh proxy_input(const Scene& cell, const ProxyOptions& options) {
     }
     if (options.lattice) error += snap_error;
     out.error = std::max(out.error, error);
+    out.chord_error = out.error;
   }
   return out;
 }
@@ -184,6 +185,7 @@ ProxyMesh merge_proxies(const ProxyMesh& lower, const ProxyMesh& upper) {
     }
   }
   out.error = std::max(lower.error, upper.error);
+  out.chord_error = std::max(lower.chord_error, upper.chord_error);
   const uint64_t total = lower.subtree_triangles + upper.subtree_triangles;
   out.subtree_triangles = total - std::min(total, dropped);
   return out;
@@ -224,12 +226,15 @@ double measured_distance(const ProxyMesh& input, const ProxyMesh& proxy) {
 }
 
 ProxyMesh simplify_proxy(const ProxyMesh& input, const ProxyOptions& options, ProxySimplifyStats* stats,
-                         const Aabb* region) {
+                         const Aabb* region, const ProxyMeasure* measure) {
   ProxySimplifyStats local;
   ProxySimplifyStats& st = stats != nullptr ? *stats : local;
   st = {};
   const size_t target = std::max<uint32_t>(options.target_triangles, 1);
-  if (input.triangle_count() <= target) return input;
+  if (input.triangle_count() <= target) {
+    st.kept_input = true;
+    return input;
+  }
   st.simplified = true;
 
   // meshoptimizer takes floats: positions relative to the mesh's centre keep their precision
@@ -263,8 +268,20 @@ ProxyMesh simplify_proxy(const ProxyMesh& input, const ProxyOptions& options, Pr
       st.unlocked = true;
     }
   }
-  // A voxel shell (proxy_shell.h) with its measured bound; empty when none could be made.
+  // A candidate's bound: against the original geometry when the caller measures it, else the
+  // measured distance to the input plus the input's bound.
   const TriangleBvh input_bvh(input.positions, input.indices);
+  auto bound = [&](ProxyMesh& candidate, double estimate, double measured, MeasuredBound& original) {
+    candidate.chord_error = input.chord_error;
+    if (measure == nullptr) {
+      candidate.error = std::max(estimate, measured) + input.error;
+      return;
+    }
+    original = (*measure)(candidate);
+    candidate.error = std::max(input.error, original.distance() + input.chord_error);
+  };
+  // A voxel shell (proxy_shell.h) with its measured bound; empty when none could be made.
+  MeasuredBound shell_bound;
   auto make_shell = [&](double& estimate, double& measured) {
     ProxyMesh shell;
     if (options.shell_resolution <= 0) return shell;
@@ -272,7 +289,7 @@ ProxyMesh simplify_proxy(const ProxyMesh& input, const ProxyOptions& options, Pr
     if (shell.empty()) return shell;
     shell.subtree_triangles = input.subtree_triangles;
     measured = measured_distance(input, input_bvh, shell);
-    shell.error = std::max(estimate, measured) + input.error;
+    bound(shell, estimate, measured, shell_bound);
     return shell;
   };
   if (count == 0 || count > 12 * target) {
@@ -285,6 +302,7 @@ ProxyMesh simplify_proxy(const ProxyMesh& input, const ProxyOptions& options, Pr
       st.shell = true;
       st.estimate = estimate;
       st.measured = measured;
+      st.bound = std::move(shell_bound);
       return shell;
     }
     std::vector<uint32_t> sloppy(input.indices.size());
@@ -299,7 +317,10 @@ ProxyMesh simplify_proxy(const ProxyMesh& input, const ProxyOptions& options, Pr
       st.sloppy = true;
     }
   }
-  if (count == 0) return input;  // nothing simplified it: the input is its own proxy
+  if (count == 0) {  // nothing simplified it: the input is its own proxy
+    st.kept_input = true;
+    return input;
+  }
   st.estimate = static_cast<double>(error) *
                 static_cast<double>(meshopt_simplifyScale(local_positions.data(), input.positions.size(), stride));
 
@@ -314,10 +335,13 @@ ProxyMesh simplify_proxy(const ProxyMesh& input, const ProxyOptions& options, Pr
     weld.add(input.positions[kept[i]], input.positions[kept[i + 1]], input.positions[kept[i + 2]], input.sources[t],
              input.materials[t], false);
   }
-  if (out.empty()) return input;
+  if (out.empty()) {
+    st.kept_input = true;
+    return input;
+  }
   out.subtree_triangles = input.subtree_triangles;
   st.measured = measured_distance(input, input_bvh, out);
-  out.error = std::max(st.estimate, st.measured) + input.error;
+  bound(out, st.estimate, st.measured, st.bound);
   // With an unbounded error the simplifier removes whole small components (a wall, a pillar)
   // before it flattens a big one, and the measured distance shows it: a result farther from its
   // input than a few of the shell's voxels gives way to the shell when that lies nearer.
@@ -330,6 +354,7 @@ ProxyMesh simplify_proxy(const ProxyMesh& input, const ProxyOptions& options, Pr
       st.shell = true;
       st.estimate = estimate;
       st.measured = measured;
+      st.bound = std::move(shell_bound);
       return shell;
     }
   }
