@@ -87,7 +87,8 @@ struct ProxySimplifyStats {
   bool shell = false;        // a voxel shell replaced meshopt_simplify's result (unlocked too far)
   bool sloppy = false;       // meshopt_simplifySloppy did (unlocked too far, and no shell)
   double estimate = 0.0;     // meshoptimizer's absolute error (result_error x simplifyScale)
-  double measured = 0.0;     // measured two-sided distance between proxy and input
+  double measured = 0.0;     // measured two-sided distance between proxy and input (with a
+                             // ProxyMeasure: and the original)
   MeasuredBound bound;       // with a ProxyMeasure: the kept proxy's distances to the original
 };
 

@@ -17,6 +17,14 @@ namespace {
 // farthest_point may exceed the true distance by this fraction of the original's diagonal (what
 // it spends on triangles straddling the other mesh's creases and edges; proxy_distance.h).
 constexpr double kMeasureSlack = 1e-3;
+// Both searches stop refining where what is left could raise the distance found so far by no more
+// than this factor: the bounds exceed the measured distance by at most that much (and farthest_
+// point's slack), for a fraction of the work of settling every node exactly.
+constexpr double kRefineFactor = 1.25;
+// Both searches open nodes at most this many levels below the proxy's children and settle there at
+// their bounds (rigorous on the original's side): the work per proxy stays bounded by 2^levels
+// meshes, not its subtree, and a node's own bound is still the larger one below.
+constexpr int kMaxDescent = 3;
 
 double box_distance(const Aabb& box, const Vec3& p) {
   if (box.empty()) return kInfinity;
@@ -44,45 +52,65 @@ class MeshBvhs {
 double original_to_proxy(const TriangleBvh& proxy_bvh, std::span<const BoundNode> nodes,
                          std::span<const uint32_t> children, double slack) {
   double settled = 0.0;
-  std::priority_queue<std::pair<double, uint32_t>> open;  // largest bound first
-  auto offer = [&](uint32_t c) {
+  struct Open {
+    double bound;
+    uint32_t node;
+    int level;
+    bool operator<(const Open& o) const { return bound < o.bound; }
+  };
+  std::priority_queue<Open> open;  // largest bound first
+  auto offer = [&](uint32_t c, int level) {
     if (c == BoundNode::kNone) return;
     const BoundNode& n = nodes[c];
     if (n.indices.empty()) return;  // nothing beneath (a proxy is never empty over geometry)
     const double floor = std::max(0.0, settled - n.to_original);
     const double bound = n.to_original + proxy_bvh.farthest_point(n.positions, n.indices, floor, slack);
-    if (bound > settled) open.push({bound, c});
+    if (bound > settled) open.push({bound, c, level});
   };
-  for (uint32_t c : children) offer(c);
+  for (uint32_t c : children) offer(c, 0);
   while (!open.empty()) {
-    const auto [bound, c] = open.top();
+    const auto [bound, c, level] = open.top();
     open.pop();
-    if (bound <= settled) break;
+    if (bound <= kRefineFactor * settled) {  // every open bound is below it: close enough
+      settled = std::max(settled, bound);
+      break;
+    }
     const BoundNode& n = nodes[c];
-    if (n.original || n.cut_off()) {
+    if (n.original || n.cut_off() || level >= kMaxDescent) {
       settled = bound;
       continue;
     }
-    offer(n.lower);
-    offer(n.upper);
+    offer(n.lower, level + 1);
+    offer(n.upper, level + 1);
   }
   return settled;
 }
 
 // Proxy -> original for one sample: the distance from q to the original beneath `children`, or
-// some value <= `found` once it is known to be no more (the search stops there).
+// an upper bound on it <= kRefineFactor x `found` once it is known to be no more (the search
+// stops there; `*exact` false).
 double sample_to_original(const Vec3& q, std::span<const BoundNode> nodes, std::span<const uint32_t> children,
-                          double found, MeshBvhs& bvhs) {
+                          double found, MeshBvhs& bvhs, bool* exact) {
+  const double enough = kRefineFactor * found;
   double best = kInfinity;
-  using Entry = std::pair<double, uint32_t>;  // lower bound on the distance, node
-  std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> open;
+  struct Open {
+    double lower_bound;  // on the distance
+    uint32_t node;
+    int level;
+    bool operator>(const Open& o) const { return lower_bound > o.lower_bound; }
+  };
+  std::priority_queue<Open, std::vector<Open>, std::greater<Open>> open;
   for (uint32_t c : children) {
-    if (c != BoundNode::kNone && !nodes[c].indices.empty()) open.push({box_distance(nodes[c].box, q), c});
+    if (c != BoundNode::kNone && !nodes[c].indices.empty()) open.push({box_distance(nodes[c].box, q), c, 0});
   }
   while (!open.empty()) {
-    const auto [lower_bound, c] = open.top();
+    const auto [lower_bound, c, level] = open.top();
     open.pop();
-    if (lower_bound >= best || best <= found) break;
+    if (lower_bound >= best) break;
+    if (best <= enough) {
+      *exact = best <= found;
+      return best;
+    }
     const BoundNode& n = nodes[c];
     uint32_t t = 0;
     if (n.original) {
@@ -91,12 +119,15 @@ double sample_to_original(const Vec3& q, std::span<const BoundNode> nodes, std::
     }
     const double d = bvhs.of(c).nearest_above(q, 0.0, &t);
     best = std::min(best, d + (n.triangle_error.empty() ? 0.0 : n.triangle_error[t]));
-    if (best <= found || n.cut_off()) continue;
+    if (n.cut_off() || level >= kMaxDescent) continue;
     const double below = std::max(lower_bound, d - n.to_original);
     for (uint32_t k : {n.lower, n.upper}) {
-      if (k != BoundNode::kNone && !nodes[k].indices.empty()) open.push({std::max(below, box_distance(nodes[k].box, q)), k});
+      if (k != BoundNode::kNone && !nodes[k].indices.empty()) {
+        open.push({std::max(below, box_distance(nodes[k].box, q)), k, level + 1});
+      }
     }
   }
+  *exact = true;
   return best;
 }
 
@@ -118,11 +149,14 @@ MeasuredBound measure_against_original(std::span<const Vec3> positions, std::spa
   // The proxy's samples: centroids first (most often the farthest, so the searches after them
   // stop sooner), then vertices, then edge midpoints; a triangle's error is the largest of its own.
   MeshBvhs bvhs(nodes);
-  double found = 0.0;
+  double found = 0.0, largest = 0.0;  // the largest exact distance, the largest bound
   auto sample = [&](const Vec3& q) {
-    const double d = sample_to_original(q, nodes, children, found, bvhs);
-    if (std::isfinite(d)) found = std::max(found, d);
-    return std::isfinite(d) ? d : 0.0;
+    bool exact = false;
+    const double d = sample_to_original(q, nodes, children, found, bvhs, &exact);
+    if (!std::isfinite(d)) return 0.0;
+    if (exact) found = std::max(found, d);
+    largest = std::max(largest, d);
+    return d;
   };
   auto corner = [&](size_t t, int k) { return positions[indices[3 * t + static_cast<size_t>(k)]]; };
   for (size_t t = 0; t < triangles; ++t) out.triangle_error[t] = sample((corner(t, 0) + corner(t, 1) + corner(t, 2)) / 3.0);
@@ -139,7 +173,7 @@ MeasuredBound measure_against_original(std::span<const Vec3> positions, std::spa
     double& e = out.triangle_error[t];
     for (int k = 0; k < 3; ++k) e = std::max(e, sample(0.5 * (corner(t, k) + corner(t, (k + 1) % 3))));
   }
-  out.from_proxy = found;
+  out.from_proxy = largest;
   return out;
 }
 
