@@ -672,7 +672,7 @@ TEST(BuildStoreProxy, StoredBoundsHoldAgainstADenseSampleOfTheOriginalAndGrowTow
 TEST(BuildStoreProxy, ATerrainsRootBoundIsBelowItsHeightRange) {
   // Bounds measured against the original, not summed down the tree: a terrain's root proxy lies
   // within its height range of every point of it (the sum of the levels' errors did not).
-  auto model = build(generated("terrain", 60000), "root_bound.frontier", 48, 64, CellCodec::Draco, 20000);
+  auto model = build(generated("terrain", 6000), "root_bound.frontier", 48, 64, CellCodec::Draco, 1500);
   ASSERT_TRUE(model);
   const Vec3 extent = model->info().bounds.extent();
   const double height = std::min({extent.x, extent.y, extent.z});

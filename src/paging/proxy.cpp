@@ -274,7 +274,12 @@ ProxyMesh simplify_proxy(const ProxyMesh& input, const ProxyOptions& options, Pr
   }
   // A candidate's bound: against the original geometry when the caller measures it, else the
   // measured distance to the input plus the input's bound.
-  const TriangleBvh input_bvh(input.positions, input.indices);
+  // The input's BVH, built when first needed (a shell, or measuring against the input).
+  std::optional<TriangleBvh> input_bvh_storage;
+  auto input_bvh = [&]() -> const TriangleBvh& {
+    if (!input_bvh_storage) input_bvh_storage.emplace(input.positions, input.indices);
+    return *input_bvh_storage;
+  };
   auto bound = [&](ProxyMesh& candidate, double estimate, double measured, MeasuredBound& original) {
     candidate.chord_error = input.chord_error;
     if (measure == nullptr) {
@@ -289,10 +294,10 @@ ProxyMesh simplify_proxy(const ProxyMesh& input, const ProxyOptions& options, Pr
   auto make_shell = [&](double& estimate, double& measured) {
     ProxyMesh shell;
     if (options.shell_resolution <= 0) return shell;
-    shell = shell_proxy(input, options, target, region, input_bvh, estimate);
+    shell = shell_proxy(input, options, target, region, input_bvh(), estimate);
     if (shell.empty()) return shell;
     shell.subtree_triangles = input.subtree_triangles;
-    if (measure == nullptr) measured = measured_distance(input, input_bvh, shell);
+    if (measure == nullptr) measured = measured_distance(input, input_bvh(), shell);
     bound(shell, estimate, measured, shell_bound);
     if (measure != nullptr) measured = shell_bound.distance();
     return shell;
@@ -353,7 +358,7 @@ ProxyMesh simplify_proxy(const ProxyMesh& input, const ProxyOptions& options, Pr
   }
   // Measured against the original (which the input is within input.error of) when the caller
   // measures, else against the input.
-  if (measure == nullptr) st.measured = measured_distance(input, input_bvh, out);
+  if (measure == nullptr) st.measured = measured_distance(input, input_bvh(), out);
   bound(out, st.estimate, st.measured, st.bound);
   if (measure != nullptr) st.measured = st.bound.distance();
   // With an unbounded error the simplifier removes whole small components (a wall, a pillar)
@@ -378,7 +383,8 @@ ProxyMesh simplify_proxy(const ProxyMesh& input, const ProxyOptions& options, Pr
   if (measure == nullptr || out.error <= std::max(kAcceptGrowth * input.error, kAcceptVoxels * voxel)) return out;
   // Its bound against the original grew well beyond its input's: the simplifier deleted a
   // component (a wall; a shell a lower node chose, which is not welded to its neighbours) or
-  // folded the surface. The other methods are measured too, and the smallest bound is kept
+  // folded the surface. The unlocked and sloppy simplifiers are measured too (a shell only where
+  // the trigger above made one: they cost an OpenVDB grid each), and the smallest bound is kept
   // (at no more triangles than twice the target or this result's).
   const size_t most = std::max(out.triangle_count(), 2 * target);
   auto consider = [&](ProxyMesh candidate, double estimate, bool unlocked, bool shell, bool sloppy) {
@@ -411,10 +417,6 @@ ProxyMesh simplify_proxy(const ProxyMesh& input, const ProxyOptions& options, Pr
                                             local_positions.data(), input.positions.size(), stride, 3 * target,
                                             FLT_MAX, &sloppy_error);
     consider(mesh_of(sloppy, n), sloppy_error * scale, true, false, true);
-  }
-  if (!try_shell && options.shell_resolution > 0) {
-    double estimate = 0.0;
-    consider(shell_proxy(input, options, target, region, input_bvh, estimate), estimate, true, true, false);
   }
   return out;
 }

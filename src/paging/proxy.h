@@ -33,7 +33,9 @@
 // descendants' proxies (proxy_bound.h, which also says what the nodes above the external build's
 // parts measure through); the proxy's side is sampled at its vertices, edge midpoints and
 // centroids (its few large triangles would need splitting to the bound's size to be bounded
-// everywhere). Candidates (locked, unlocked, shell, sloppy) are compared by that bound.
+// everywhere). Candidates are compared by that bound: a shell replaces the simplifier's result
+// when it is the smaller, and where the result's bound exceeds both twice its input's and three
+// shell voxels, the unlocked and sloppy simplifiers are measured too and the smallest kept.
 // Without a ProxyMeasure (tests of simplify_proxy alone) a node's bound is relative to its input:
 // max(meshoptimizer's estimate, the measured distance to the input) + the input's bound; a
 // shell's estimate is its offset (a voxel and half a voxel's diagonal) plus meshoptimizer's.

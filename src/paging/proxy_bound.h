@@ -23,7 +23,12 @@
 //                  found so far, or when d(q, t) + triangle_error(t) says so, t the nearest
 //                  triangle of a node's mesh (triangle_error is sampled, so this side is as
 //                  sampled as before).
-// Both sides are exact (to the slack of farthest_point) where the search reaches the leaves.
+// To keep the build affordable, both searches stop refining where what is still open could raise
+// the distance found by no more than 1.25x, and open nodes at most 3 levels below the proxy's
+// children (settling there at their bounds, still rigorous on the original's side): a stored
+// bound exceeds the measured distance by at most about 1.25x, and a proxy's measurement touches at
+// most 2 + 4 + 8 + 16 meshes, not its whole subtree. Where the search does reach the leaves, both
+// sides are exact (to the slack of farthest_point).
 // In the external build the nodes above the parts (merge_pending) no longer have their original
 // triangles in memory: their hierarchy is the part roots' top kBoundLevels levels of proxies, the
 // deepest of them cut off (their to_original and from_proxy stand for what lies beneath).
