@@ -864,25 +864,29 @@ class StoreBuilder {
   }
 
   // Proxies of a part's tree (grafted at node_base), bottom-up on the worker threads; their pages
-  // are written here in node order. The part root's mesh goes on the pending stack.
+  // are written here in node order. Each proxy's bound is measured against the part's original
+  // triangles through the part's hierarchy (proxy_bound.h), which is held until the part is done;
+  // the part root's mesh goes on the pending stack with the hierarchy's top kBoundLevels levels.
   Status build_part_proxies(const Scene& scene, const KdTree& tree, uint32_t node_base) {
     const auto t = std::chrono::steady_clock::now();
     std::vector<PendingProxyPage> pages(tree.nodes().size());
+    std::vector<BoundNode> bounds(tree.nodes().size());
     const CellCodecOptions codec = codec_options();
     ProxyMesh root;
-    arena_->execute([&] { root = part_proxy(scene, tree, 0, tree.bounds(), pages, codec); });
+    arena_->execute([&] { root = part_proxy(scene, tree, 0, tree.bounds(), pages, bounds, codec); });
     for (size_t i = 0; i < pages.size(); ++i) {
       if (Status s = write_proxy(node_base + static_cast<uint32_t>(i), pages[i]); !s) return s;
     }
-    pending_.push_back(std::move(root));
+    pending_.push_back({std::move(root), bound_summary(bounds, 0, kBoundLevels)});
     report_.proxy_seconds += seconds_since(t);
     return Status::ok();
   }
 
   // The mesh standing for local node `node` of a part's tree: a leaf's input, or an interior
-  // node's proxy (whose page goes to pages[node]).
+  // node's proxy (whose page goes to pages[node]); bounds[node] is its place in the hierarchy.
   ProxyMesh part_proxy(const Scene& scene, const KdTree& tree, uint32_t node, const Aabb& region,
-                       std::vector<PendingProxyPage>& pages, const CellCodecOptions& codec) const {
+                       std::vector<PendingProxyPage>& pages, std::vector<BoundNode>& bounds,
+                       const CellCodecOptions& codec) const {
     const KdTree::Node& n = tree.nodes()[node];
     if (n.is_leaf()) {
       const KdTree::Cell& cell = tree.cells()[n.child];
@@ -890,30 +894,63 @@ class StoreBuilder {
       for (uint32_t r = cell.first; r < cell.first + cell.count; ++r) local.add_from(scene, tree.ref(r));
       ProxyMesh mesh = proxy_input(local, proxy_options_);
       pages[node].record.subtree_triangles = mesh.subtree_triangles;
+      BoundNode& b = bounds[node];
+      b.positions = mesh.positions;
+      b.indices = mesh.indices;
+      for (const Vec3& p : b.positions) b.box.extend(p);
+      b.original = true;
       return mesh;
     }
     Aabb lower_region = region, upper_region = region;
     lower_region.hi[n.axis_or_leaf] = n.split;
     upper_region.lo[n.axis_or_leaf] = n.split;
     ProxyMesh lower, upper;
-    tbb::parallel_invoke([&] { lower = part_proxy(scene, tree, node + 1, lower_region, pages, codec); },
-                         [&] { upper = part_proxy(scene, tree, n.child, upper_region, pages, codec); });
-    return make_proxy(lower, upper, region, pages[node], codec);
+    tbb::parallel_invoke([&] { lower = part_proxy(scene, tree, node + 1, lower_region, pages, bounds, codec); },
+                         [&] { upper = part_proxy(scene, tree, n.child, upper_region, pages, bounds, codec); });
+    return make_proxy(lower, upper, region, pages[node], codec, bounds, node, node + 1, n.child);
   }
 
-  // Merges two children's meshes into their parent's proxy, encoded into `out`.
+  // Merges two children's meshes into their parent's proxy, encoded into `out`; its bound is
+  // measured through `bounds` (the children at lower_index and upper_index, complete) and the
+  // proxy takes its place there at `index`.
   ProxyMesh make_proxy(ProxyMesh& lower, ProxyMesh& upper, const Aabb& region, PendingProxyPage& out,
-                       const CellCodecOptions& codec) const {
+                       const CellCodecOptions& codec, std::vector<BoundNode>& bounds, uint32_t index,
+                       uint32_t lower_index, uint32_t upper_index) const {
     ProxyMesh merged = merge_proxies(lower, upper);
     lower = ProxyMesh{};
     upper = ProxyMesh{};
+    const uint32_t children[2] = {lower_index, upper_index};
+    const ProxyMeasure measure = [&](const ProxyMesh& candidate) {
+      return measure_against_original(candidate.positions, candidate.indices, bounds, children);
+    };
     ProxySimplifyStats stats;
-    ProxyMesh proxy = simplify_proxy(merged, proxy_options_, &stats, &region);
+    ProxyMesh proxy = simplify_proxy(merged, proxy_options_, &stats, &region, &measure);
+    merged = ProxyMesh{};
     out.shell = stats.shell;
     out.sloppy = stats.sloppy;
     out.record.error = proxy.error;
     out.record.subtree_triangles = proxy.subtree_triangles;
     if (!proxy.empty()) out.page = encode_page(proxy_scene(proxy), codec);
+    const BoundNode& l = bounds[lower_index];
+    const BoundNode& u = bounds[upper_index];
+    BoundNode b;
+    b.lower = lower_index;
+    b.upper = upper_index;
+    b.box = l.box;
+    b.box.extend(u.box);
+    if (stats.kept_input) {  // the children's meshes themselves: their bounds hold for it
+      b.original = l.original && u.original;
+      b.to_original = std::max(l.to_original, u.to_original);
+      b.from_proxy = std::max(l.from_proxy, u.from_proxy);
+      if (!b.original) b.triangle_error.assign(proxy.triangle_count(), b.from_proxy);
+    } else {
+      b.to_original = stats.bound.to_original;
+      b.from_proxy = stats.bound.from_proxy;
+      b.triangle_error = std::move(stats.bound.triangle_error);
+    }
+    b.positions = proxy.positions;
+    b.indices = proxy.indices;
+    bounds[index] = std::move(b);
     return proxy;
   }
 
@@ -939,19 +976,38 @@ class StoreBuilder {
     return Status::ok();
   }
 
+  // `more` after the nodes of `to`, its child links moved along.
+  static void append_bounds(std::vector<BoundNode>& to, std::vector<BoundNode>&& more) {
+    const auto offset = static_cast<uint32_t>(to.size());
+    for (BoundNode& b : more) {
+      if (b.lower != BoundNode::kNone) b.lower += offset;
+      if (b.upper != BoundNode::kNone) b.upper += offset;
+      to.push_back(std::move(b));
+    }
+  }
+
   // A plan node above the parts whose children are done: its proxy from the two pending meshes.
   Status merge_pending(uint32_t node, const Aabb& region) {
     const auto t = std::chrono::steady_clock::now();
     if (pending_.size() < 2) return Status::invalid_argument("build: proxy stack underflow (a bug)");
-    ProxyMesh upper = std::move(pending_.back());
+    PendingSubtree upper = std::move(pending_.back());
     pending_.pop_back();
-    ProxyMesh lower = std::move(pending_.back());
+    PendingSubtree lower = std::move(pending_.back());
     pending_.pop_back();
+    // The parts' original triangles are gone: the hierarchy is what the pending subtrees kept
+    // (their top levels, the deepest cut off), below a new node 0 for this one.
+    std::vector<BoundNode> bounds(1);
+    const auto lower_index = static_cast<uint32_t>(bounds.size());
+    append_bounds(bounds, std::move(lower.bounds));
+    const auto upper_index = static_cast<uint32_t>(bounds.size());
+    append_bounds(bounds, std::move(upper.bounds));
     PendingProxyPage page;
     ProxyMesh proxy;
-    arena_->execute([&] { proxy = make_proxy(lower, upper, region, page, codec_options()); });
+    arena_->execute([&] {
+      proxy = make_proxy(lower.mesh, upper.mesh, region, page, codec_options(), bounds, 0, lower_index, upper_index);
+    });
     if (Status s = write_proxy(node, page); !s) return s;
-    pending_.push_back(std::move(proxy));
+    pending_.push_back({std::move(proxy), bound_summary(bounds, 0, kBoundLevels)});
     report_.proxy_seconds += seconds_since(t);
     return Status::ok();
   }
@@ -1034,7 +1090,12 @@ class StoreBuilder {
   std::vector<uint8_t> portals_;  // the serialized PortalGraph; empty: no portals section
   ProxyOptions proxy_options_;
   std::vector<StoreProxy> proxies_;  // per node of nodes_ (grown as proxies are written)
-  std::vector<ProxyMesh> pending_;   // meshes of finished subtrees whose parent is not done yet
+  // A finished subtree whose parent is not done yet: its mesh and the top of its hierarchy.
+  struct PendingSubtree {
+    ProxyMesh mesh;
+    std::vector<BoundNode> bounds;
+  };
+  std::vector<PendingSubtree> pending_;
   BuildReport report_;
 };
 

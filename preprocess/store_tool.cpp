@@ -1,7 +1,9 @@
 // frontier-store: looks inside a store file.
 //   info FILE    what the store holds: primitives, cells, depth, bytes per triangle, codec,
 //                in-cell trees (pages, bytes, the options they were built with), lattice, collision grid, cells and portals, proxies (pages, bytes apart from the
-//                cells', error bound at the root and per depth), sections, a histogram of cell sizes
+//                cells', error bound at the root and per depth, and per depth the bound, the
+//                measured distance to the original cells and their ratio for up to 4 nodes whose
+//                subtrees have at most 200 k triangles), sections, a histogram of cell sizes
 //   verify FILE  every checksum, every structural invariant (the portals section included),
 //                every cell page decoded and checked against its cell, every in-cell tree
 //                assembled over its cell, every collision brick decoded, every proxy page decoded
@@ -13,6 +15,7 @@
 #include "src/paging/collision_grid.h"
 #include "src/core/progress.h"
 #include "src/io/ply_writer.h"
+#include "src/paging/proxy.h"
 #include "src/paging/store_model.h"
 #include "store/page_file.h"
 #include "store/store_file.h"
@@ -20,6 +23,7 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <bit>
 #include <cstdio>
 #include <map>
@@ -37,13 +41,56 @@ int fail(const frontier::Status& s) {
 
 std::string vec(const frontier::Vec3& v) { return fmt::format("({:.9g}, {:.9g}, {:.9g})", v.x, v.y, v.z); }
 
-// The proxies line: pages and bytes (apart from the cells'), and the error bound by depth.
-std::string proxies_info(const StoreModel& model) {
-  if (model.proxies().empty()) return "proxies     none\n";
+// Nodes measured per depth by `info`, and the most triangles their subtrees may have (reading
+// and measuring a subtree of 200 k triangles takes about a quarter of a second).
+constexpr size_t kMeasuredPerDepth = 4;
+constexpr uint64_t kMeasuredSubtreeTriangles = 200000;  // info --measure-triangles' default
+
+// The two-sided distance between node `node`'s proxy and the original geometry of its subtree
+// (cells first .. end of the preorder), measured as the builder measures a proxy against its
+// input (proxy.h measured_distance: an upper bound over every original point, the proxy's
+// vertices, edge midpoints and centroids), plus the curved primitives' tessellation error.
+frontier::Result<double> measured_proxy_distance(const StoreModel& model, uint32_t node, uint32_t end) {
+  frontier::ProxyOptions options;
+  if (frontier::cell_codec_on_lattice(model.info().codec)) options.lattice = model.info().lattice;
+  frontier::Scene cells;
+  for (uint32_t n = node; n < end; ++n) {
+    if (!model.nodes()[n].is_leaf() || model.cells()[model.nodes()[n].child].page == StoreCell::kNoPage) continue;
+    frontier::Scene cell;
+    if (frontier::Status s = model.read_cell(model.nodes()[n].child, cell); !s) return s;
+    for (uint32_t i = 0; i < cell.size(); ++i) cells.add_from(cell, i);
+  }
+  const frontier::ProxyMesh original = frontier::proxy_input(cells, options);
+  frontier::Scene scene;
+  if (frontier::Status s = model.read_proxy(node, scene); !s) return s;
+  frontier::ProxyMesh proxy = frontier::proxy_input(scene, options);
+  if (original.empty() || proxy.empty()) return 0.0;
+  return frontier::measured_distance(original, proxy) + original.chord_error;
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const size_t h = v.size() / 2;
+  return v.size() % 2 == 1 ? v[h] : 0.5 * (v[h - 1] + v[h]);
+}
+
+// The proxies line: pages and bytes (apart from the cells'), and the error bound by depth with
+// the measured distance of a few nodes per depth.
+frontier::Result<std::string> proxies_info(const StoreModel& model, uint64_t measure_triangles) {
+  if (model.proxies().empty()) return std::string("proxies     none\n");
   uint64_t pages = 0, bytes = 0, triangles = 0, model_triangles = std::max<uint64_t>(model.info().triangles, 1);
-  std::map<uint32_t, std::pair<double, double>> by_depth;  // depth: smallest, largest bound
-  std::vector<uint32_t> depth(model.nodes().size(), 0);
-  for (uint32_t i = 0; i < model.nodes().size(); ++i) {
+  struct Depth {
+    double smallest = 0.0, largest = 0.0;
+    std::vector<uint32_t> small_nodes;  // proxies whose subtrees are small enough to measure
+  };
+  std::map<uint32_t, Depth> by_depth;
+  const size_t count = model.nodes().size();
+  std::vector<uint32_t> depth(count, 0), end(count);
+  for (size_t i = count; i-- > 0;) {
+    end[i] = model.nodes()[i].is_leaf() ? static_cast<uint32_t>(i + 1) : end[model.nodes()[i].child];
+  }
+  for (uint32_t i = 0; i < count; ++i) {
     const frontier::KdTree::Node& n = model.nodes()[i];
     if (!n.is_leaf()) depth[i + 1] = depth[n.child] = depth[i] + 1;
     const frontier::StoreProxy* p = model.proxy(i);
@@ -51,20 +98,39 @@ std::string proxies_info(const StoreModel& model) {
     ++pages;
     bytes += model.reader().page_handle(p->page).size;
     triangles += p->triangles;
-    auto [it, fresh] = by_depth.try_emplace(depth[i], p->error, p->error);
-    it->second.first = std::min(it->second.first, p->error);
-    it->second.second = std::max(it->second.second, p->error);
+    auto [it, fresh] = by_depth.try_emplace(depth[i], Depth{p->error, p->error, {}});
+    it->second.smallest = std::min(it->second.smallest, p->error);
+    it->second.largest = std::max(it->second.largest, p->error);
+    if (p->subtree_triangles <= measure_triangles) it->second.small_nodes.push_back(i);
   }
   std::string out = fmt::format(
-      "proxies     {} pages, {} triangles, {} bytes ({:.2f} bytes/triangle of the model), root error {:.4g}\n", pages,
-      triangles, bytes, static_cast<double>(bytes) / static_cast<double>(model_triangles), model.proxies()[0].error);
-  for (const auto& [d, range] : by_depth) {
-    out += fmt::format("  depth {:>3}  error {:.4g} .. {:.4g}\n", d, range.first, range.second);
+      "proxies     {} pages, {} triangles, {} bytes ({:.2f} bytes/triangle of the model), root error {:.4g}\n"
+      "            per depth: stored bounds; medians over up to {} nodes whose subtrees have at most {} triangles\n"
+      "            of the stored bound, the measured two-sided distance to the original cells and their ratio\n",
+      pages, triangles, bytes, static_cast<double>(bytes) / static_cast<double>(model_triangles),
+      model.proxies()[0].error, kMeasuredPerDepth, measure_triangles);
+  for (const auto& [d, at] : by_depth) {
+    out += fmt::format("  depth {:>3}  error {:.4g} .. {:.4g}", d, at.smallest, at.largest);
+    std::vector<double> stored, measured, ratio;
+    const size_t n = at.small_nodes.size();
+    for (size_t k = 0; k < std::min(n, kMeasuredPerDepth); ++k) {
+      const uint32_t node = at.small_nodes[k * n / std::min(n, kMeasuredPerDepth)];  // spread over the depth
+      auto distance = measured_proxy_distance(model, node, end[node]);
+      if (!distance) return distance.status();
+      stored.push_back(model.proxies()[node].error);
+      measured.push_back(*distance);
+      if (*distance > 0.0) ratio.push_back(model.proxies()[node].error / *distance);
+    }
+    if (!stored.empty()) {
+      out += fmt::format("  measured {} nodes: stored {:.4g}, distance {:.4g}, stored/distance {}", stored.size(),
+                         median(stored), median(measured), ratio.empty() ? std::string("-") : fmt::format("{:.3g}", median(ratio)));
+    }
+    out += "\n";
   }
   return out;
 }
 
-int info(const std::string& path) {
+int info(const std::string& path, uint64_t measure_triangles) {
   auto opened = StoreModel::open(path);
   if (!opened) return fail(opened.status());
   const StoreModel& model = **opened;
@@ -135,7 +201,9 @@ int info(const std::string& path) {
   } else {
     out += "portals     none\n";
   }
-  out += proxies_info(model);
+  auto proxies = proxies_info(model, measure_triangles);
+  if (!proxies) return fail(proxies.status());
+  out += *proxies;
   out += "sections   ";
   for (const auto& s : reader.sections()) out += fmt::format(" {} {}B", s.name, s.handle.size);
   out += "\ncell sizes  (references per non-empty cell)\n";
@@ -284,6 +352,11 @@ int main(int argc, char** argv) {
       "info", "primitives, cells, depth, bytes per triangle, codec, in-cell trees, lattice, collision grid, rooms and portals, proxies "
       "(pages, bytes, error by depth), sections, cell size histogram");
   info_cmd->add_option("file", path, "store file")->required();
+  uint64_t measure_triangles = kMeasuredSubtreeTriangles;
+  info_cmd->add_option("--measure-triangles", measure_triangles,
+                       "measure the proxies of up to 4 nodes per depth whose subtrees have at most this many triangles "
+                       "against their original cells (0: none)")
+      ->capture_default_str();
   auto* verify_cmd = app.add_subcommand(
       "verify", "check every checksum and structural invariant and decode every page (cells with their in-cell trees, "
       "collision bricks and proxies); exit 1 "
@@ -302,7 +375,7 @@ int main(int argc, char** argv) {
     const int code = app.exit(e);  // prints the help, or the error and a hint
     return code == 0 ? 0 : 2;  // bad options: 2, as README says (CLI11's own codes are 100+)
   }
-  if (info_cmd->parsed()) return info(path);
+  if (info_cmd->parsed()) return info(path, measure_triangles);
   if (proxy_cmd->parsed()) return export_proxy(path, node, out);
   return verify(path, quiet);
 }

@@ -602,6 +602,85 @@ TEST(BuildStoreProxy, FlatFarAndSphereOnlyInputBuildProxiesWithinTheirBounds) {
   EXPECT_EQ(one->proxy(0), nullptr);
 }
 
+// Points on the triangle abc: a barycentric grid of `n` steps along each edge (corners included).
+void dense_points(const Triangle& t, int n, std::vector<Vec3>& out) {
+  for (int i = 0; i <= n; ++i) {
+    for (int j = 0; i + j <= n; ++j) {
+      const double u = static_cast<double>(i) / n, v = static_cast<double>(j) / n;
+      out.push_back(t.v0 + u * (t.v1 - t.v0) + v * (t.v2 - t.v0));
+    }
+  }
+}
+
+// Every interior node's stored bound against its subtree's original triangles, measured by brute
+// force: a dense sample of every original triangle to the proxy's triangles, and the proxy's
+// vertices, edge midpoints and centroids to the original (exact nearest distances); bounds weakly
+// growing towards the root. Returns the nodes checked.
+size_t check_dense_bounds(const StoreModel& model) {
+  std::vector<Scene> cells(model.cells().size());
+  for (uint32_t c = 0; c < cells.size(); ++c) EXPECT_TRUE(model.read_cell(c, cells[c]));
+  const std::vector<uint32_t> end = subtree_ends(model.nodes());
+  const double tolerance = 1e-9 * glm::length(model.info().bounds.extent());
+  size_t checked = 0;
+  for (uint32_t n = 0; n < model.nodes().size(); ++n) {
+    const KdTree::Node& node = model.nodes()[n];
+    const StoreProxy* proxy = model.proxy(n);
+    if (node.is_leaf() || proxy == nullptr) continue;
+    for (uint32_t child : {n + 1, node.child}) EXPECT_GE(proxy->error, model.proxies()[child].error) << n;
+    const Original original = original_of(model, cells, n, end[n]);
+    Scene decoded;
+    EXPECT_TRUE(model.read_proxy(n, decoded)) << n;
+    double farthest_original = 0.0, farthest_proxy = 0.0;
+    std::vector<Vec3> points;
+    for (const Triangle& t : original.triangles) {
+      points.clear();
+      dense_points(t, 4, points);
+      for (const Vec3& p : points) farthest_original = std::max(farthest_original, distance_to_triangles(p, decoded.triangles));
+    }
+    std::vector<Vec3> positions;
+    std::vector<uint32_t> indices;
+    for (const Triangle& t : original.triangles) {
+      for (const Vec3& v : {t.v0, t.v1, t.v2}) {
+        indices.push_back(static_cast<uint32_t>(positions.size()));
+        positions.push_back(v);
+      }
+    }
+    const TriangleBvh original_bvh(positions, indices);
+    for (const Triangle& t : decoded.triangles) {
+      for (const Vec3& p : {t.v0, t.v1, t.v2, (t.v0 + t.v1 + t.v2) / 3.0, 0.5 * (t.v0 + t.v1), 0.5 * (t.v1 + t.v2),
+                            0.5 * (t.v2 + t.v0)}) {
+        farthest_proxy = std::max(farthest_proxy, original_bvh.distance(p));
+      }
+    }
+    EXPECT_GE(proxy->error + tolerance, farthest_original) << "node " << n << ": an original point lies farther";
+    EXPECT_GE(proxy->error + tolerance, farthest_proxy) << "node " << n << ": a proxy sample lies farther";
+    ++checked;
+  }
+  return checked;
+}
+
+TEST(BuildStoreProxy, StoredBoundsHoldAgainstADenseSampleOfTheOriginalAndGrowTowardsTheRoot) {
+  // Split on disk (part_primitives): nodes above the parts measure through the parts' kept levels.
+  auto terrain = build(generated("terrain", 6000), "dense_terrain.frontier", 48, 64, CellCodec::Draco, 1500);
+  ASSERT_TRUE(terrain);
+  EXPECT_GT(check_dense_bounds(*terrain), 15u);
+  auto building = build(generated("building", 6000), "dense_building.frontier", 64, 128, CellCodec::Draco, 2000);
+  ASSERT_TRUE(building);
+  EXPECT_GT(check_dense_bounds(*building), 7u);
+}
+
+TEST(BuildStoreProxy, ATerrainsRootBoundIsBelowItsHeightRange) {
+  // Bounds measured against the original, not summed down the tree: a terrain's root proxy lies
+  // within its height range of every point of it (the sum of the levels' errors did not).
+  auto model = build(generated("terrain", 6000), "root_bound.frontier", 48, 64, CellCodec::Draco, 1500);
+  ASSERT_TRUE(model);
+  const Vec3 extent = model->info().bounds.extent();
+  const double height = std::min({extent.x, extent.y, extent.z});
+  ASSERT_NE(model->proxy(0), nullptr);
+  EXPECT_LT(model->proxies()[0].error, height) << "extent " << extent.x << " " << extent.y << " " << extent.z;
+  EXPECT_GT(model->proxies()[0].error, 0.0);
+}
+
 TEST(BuildStoreProxy, NoProxiesWithZeroTarget) {
   auto model = build(generated("terrain", 6000), "none.frontier", 0);
   ASSERT_TRUE(model);

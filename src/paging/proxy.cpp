@@ -140,6 +140,10 @@ ProxyMesh shell_proxy(const ProxyMesh& input, const ProxyOptions& options, size_
 // simplify_proxy tries a shell when its simplified mesh lies farther than this many shell voxels
 // from the input.
 constexpr double kShellTriggerVoxels = 6.0;
+// With a ProxyMeasure, simplify_proxy measures the other methods too where its result's bound
+// exceeds both this factor times its input's and this many shell voxels.
+constexpr double kAcceptGrowth = 2.0;
+constexpr double kAcceptVoxels = 3.0;
 
 }  // namespace
 
@@ -167,6 +171,7 @@ ProxyMesh proxy_input(const Scene& cell, const ProxyOptions& options) {
     }
     if (options.lattice) error += snap_error;
     out.error = std::max(out.error, error);
+    out.chord_error = out.error;
   }
   return out;
 }
@@ -184,6 +189,7 @@ ProxyMesh merge_proxies(const ProxyMesh& lower, const ProxyMesh& upper) {
     }
   }
   out.error = std::max(lower.error, upper.error);
+  out.chord_error = std::max(lower.chord_error, upper.chord_error);
   const uint64_t total = lower.subtree_triangles + upper.subtree_triangles;
   out.subtree_triangles = total - std::min(total, dropped);
   return out;
@@ -224,12 +230,15 @@ double measured_distance(const ProxyMesh& input, const ProxyMesh& proxy) {
 }
 
 ProxyMesh simplify_proxy(const ProxyMesh& input, const ProxyOptions& options, ProxySimplifyStats* stats,
-                         const Aabb* region) {
+                         const Aabb* region, const ProxyMeasure* measure) {
   ProxySimplifyStats local;
   ProxySimplifyStats& st = stats != nullptr ? *stats : local;
   st = {};
   const size_t target = std::max<uint32_t>(options.target_triangles, 1);
-  if (input.triangle_count() <= target) return input;
+  if (input.triangle_count() <= target) {
+    st.kept_input = true;
+    return input;
+  }
   st.simplified = true;
 
   // meshoptimizer takes floats: positions relative to the mesh's centre keep their precision
@@ -263,16 +272,34 @@ ProxyMesh simplify_proxy(const ProxyMesh& input, const ProxyOptions& options, Pr
       st.unlocked = true;
     }
   }
+  // A candidate's bound: against the original geometry when the caller measures it, else the
+  // measured distance to the input plus the input's bound.
+  // The input's BVH, built when first needed (a shell, or measuring against the input).
+  std::optional<TriangleBvh> input_bvh_storage;
+  auto input_bvh = [&]() -> const TriangleBvh& {
+    if (!input_bvh_storage) input_bvh_storage.emplace(input.positions, input.indices);
+    return *input_bvh_storage;
+  };
+  auto bound = [&](ProxyMesh& candidate, double estimate, double measured, MeasuredBound& original) {
+    candidate.chord_error = input.chord_error;
+    if (measure == nullptr) {
+      candidate.error = std::max(estimate, measured) + input.error;
+      return;
+    }
+    original = (*measure)(candidate);
+    candidate.error = std::max(input.error, original.distance() + input.chord_error);
+  };
   // A voxel shell (proxy_shell.h) with its measured bound; empty when none could be made.
-  const TriangleBvh input_bvh(input.positions, input.indices);
+  MeasuredBound shell_bound;
   auto make_shell = [&](double& estimate, double& measured) {
     ProxyMesh shell;
     if (options.shell_resolution <= 0) return shell;
-    shell = shell_proxy(input, options, target, region, input_bvh, estimate);
+    shell = shell_proxy(input, options, target, region, input_bvh(), estimate);
     if (shell.empty()) return shell;
     shell.subtree_triangles = input.subtree_triangles;
-    measured = measured_distance(input, input_bvh, shell);
-    shell.error = std::max(estimate, measured) + input.error;
+    if (measure == nullptr) measured = measured_distance(input, input_bvh(), shell);
+    bound(shell, estimate, measured, shell_bound);
+    if (measure != nullptr) measured = shell_bound.distance();
     return shell;
   };
   if (count == 0 || count > 12 * target) {
@@ -285,6 +312,7 @@ ProxyMesh simplify_proxy(const ProxyMesh& input, const ProxyOptions& options, Pr
       st.shell = true;
       st.estimate = estimate;
       st.measured = measured;
+      st.bound = std::move(shell_bound);
       return shell;
     }
     std::vector<uint32_t> sloppy(input.indices.size());
@@ -299,7 +327,10 @@ ProxyMesh simplify_proxy(const ProxyMesh& input, const ProxyOptions& options, Pr
       st.sloppy = true;
     }
   }
-  if (count == 0) return input;  // nothing simplified it: the input is its own proxy
+  if (count == 0) {  // nothing simplified it: the input is its own proxy
+    st.kept_input = true;
+    return input;
+  }
   st.estimate = static_cast<double>(error) *
                 static_cast<double>(meshopt_simplifyScale(local_positions.data(), input.positions.size(), stride));
 
@@ -307,31 +338,85 @@ ProxyMesh simplify_proxy(const ProxyMesh& input, const ProxyOptions& options, Pr
   // proxy triangles whose first corner it is.
   std::vector<uint32_t> first_triangle(input.positions.size(), UINT32_MAX);
   for (size_t i = input.indices.size(); i-- > 0;) first_triangle[input.indices[i]] = static_cast<uint32_t>(i / 3);
-  ProxyMesh out;
-  MeshWelder weld(out, count / 3);
-  for (size_t i = 0; i < count; i += 3) {
-    const uint32_t t = first_triangle[kept[i]];
-    weld.add(input.positions[kept[i]], input.positions[kept[i + 1]], input.positions[kept[i + 2]], input.sources[t],
-             input.materials[t], false);
+  // A simplifier's output (indices into the input) as a mesh, each triangle named after the first
+  // input triangle of its first corner.
+  auto mesh_of = [&](const std::vector<uint32_t>& indices, size_t n) {
+    ProxyMesh m;
+    MeshWelder weld(m, n / 3);
+    for (size_t i = 0; i < n; i += 3) {
+      const uint32_t t = first_triangle[indices[i]];
+      weld.add(input.positions[indices[i]], input.positions[indices[i + 1]], input.positions[indices[i + 2]],
+               input.sources[t], input.materials[t], false);
+    }
+    m.subtree_triangles = input.subtree_triangles;
+    return m;
+  };
+  ProxyMesh out = mesh_of(kept, count);
+  if (out.empty()) {
+    st.kept_input = true;
+    return input;
   }
-  if (out.empty()) return input;
-  out.subtree_triangles = input.subtree_triangles;
-  st.measured = measured_distance(input, input_bvh, out);
-  out.error = std::max(st.estimate, st.measured) + input.error;
+  // Measured against the original (which the input is within input.error of) when the caller
+  // measures, else against the input.
+  if (measure == nullptr) st.measured = measured_distance(input, input_bvh(), out);
+  bound(out, st.estimate, st.measured, st.bound);
+  if (measure != nullptr) st.measured = st.bound.distance();
   // With an unbounded error the simplifier removes whole small components (a wall, a pillar)
   // before it flattens a big one, and the measured distance shows it: a result farther from its
   // input than a few of the shell's voxels gives way to the shell when that lies nearer.
   const Vec3 extent = box.extent();
   const double voxel = std::max({extent.x, extent.y, extent.z}) / std::max(options.shell_resolution, 1);
-  if (options.shell_resolution > 0 && st.measured > kShellTriggerVoxels * voxel) {
+  // (Against the original, what the input already was from it does not count.)
+  const double added = measure == nullptr ? st.measured : st.measured - input.error;
+  const bool try_shell = options.shell_resolution > 0 && added > kShellTriggerVoxels * voxel;
+  if (try_shell) {
     double estimate = 0.0, measured = 0.0;
     ProxyMesh shell = make_shell(estimate, measured);
     if (!shell.empty() && shell.error < out.error) {
       st.shell = true;
       st.estimate = estimate;
       st.measured = measured;
-      return shell;
+      st.bound = std::move(shell_bound);
+      out = std::move(shell);
     }
+  }
+  if (measure == nullptr || out.error <= std::max(kAcceptGrowth * input.error, kAcceptVoxels * voxel)) return out;
+  // Its bound against the original grew well beyond its input's: the simplifier deleted a
+  // component (a wall; a shell a lower node chose, which is not welded to its neighbours) or
+  // folded the surface. The unlocked and sloppy simplifiers are measured too (a shell only where
+  // the trigger above made one: they cost an OpenVDB grid each), and the smallest bound is kept
+  // (at no more triangles than twice the target or this result's).
+  const size_t most = std::max(out.triangle_count(), 2 * target);
+  auto consider = [&](ProxyMesh candidate, double estimate, bool unlocked, bool shell, bool sloppy) {
+    if (candidate.empty() || candidate.triangle_count() > most) return;
+    MeasuredBound b;
+    bound(candidate, estimate, 0.0, b);
+    if (candidate.error >= out.error) return;
+    out = std::move(candidate);
+    st.unlocked = unlocked;
+    st.shell = shell;
+    st.sloppy = sloppy;
+    st.estimate = estimate;
+    st.measured = b.distance();
+    st.bound = std::move(b);
+  };
+  const double scale =
+      static_cast<double>(meshopt_simplifyScale(local_positions.data(), input.positions.size(), stride));
+  if (!st.unlocked) {
+    std::vector<uint32_t> unlocked(input.indices.size());
+    float unlocked_error = 0.0f;
+    const size_t n = meshopt_simplify(unlocked.data(), input.indices.data(), input.indices.size(),
+                                      local_positions.data(), input.positions.size(), stride, 3 * target, FLT_MAX, 0,
+                                      &unlocked_error);
+    consider(mesh_of(unlocked, n), unlocked_error * scale, true, false, false);
+  }
+  if (!st.sloppy) {
+    std::vector<uint32_t> sloppy(input.indices.size());
+    float sloppy_error = 0.0f;
+    const size_t n = meshopt_simplifySloppy(sloppy.data(), input.indices.data(), input.indices.size(),
+                                            local_positions.data(), input.positions.size(), stride, 3 * target,
+                                            FLT_MAX, &sloppy_error);
+    consider(mesh_of(sloppy, n), sloppy_error * scale, true, false, true);
   }
   return out;
 }

@@ -22,15 +22,22 @@
 // stay on the global lattice; a shell's are new points, snapped to the lattice. Both encode with
 // the store's cell codecs.
 //
-// The bound of a simplified node = max(meshoptimizer's error estimate, the measured two-sided
-// distance between the proxy and its input) + the input's bound: by the triangle inequality, a
-// chain of such bounds covers the distance to the subtree's original geometry. The input's side
-// of the measured distance is a rigorous upper bound over every point of the input's triangles,
-// not a sample (TriangleBvh::farthest_point: convexity at the corners, splitting where the
-// corners' nearest triangles differ; at most 0.1% of the input's diagonal, or 1/1800 of a
-// triangle's longest edge, above the true distance): no part of the subtree lies farther from the
-// proxy than its bound. The proxy's side is sampled at its vertices, edge midpoints and centroids
-// (its few large triangles would need splitting to the bound's size to be bounded everywhere). A
+// The bound of a node (the builder's, with a ProxyMeasure): the larger of its children's bounds
+// (so bounds are monotone: a parent's >= its children's) and the measured two-sided distance
+// between its proxy and the subtree's ORIGINAL geometry (the leaf cells' triangles, curved
+// primitives as their tessellation) plus the curved primitives' chord error. Bounds are not
+// summed down the tree: the original side is a rigorous upper bound over every point of the
+// original triangles (TriangleBvh::farthest_point: convexity at the corners, splitting where the
+// corners' nearest triangles differ; at most 0.1% of the originals' diagonal, or 1/1800 of a
+// triangle's longest edge, above the true distance), reached by branch and bound through the
+// descendants' proxies (proxy_bound.h, which also says what the nodes above the external build's
+// parts measure through); the proxy's side is sampled at its vertices, edge midpoints and
+// centroids (its few large triangles would need splitting to the bound's size to be bounded
+// everywhere). Candidates are compared by that bound: a shell replaces the simplifier's result
+// when it is the smaller, and where the result's bound exceeds both twice its input's and three
+// shell voxels, the unlocked and sloppy simplifiers are measured too and the smallest kept.
+// Without a ProxyMeasure (tests of simplify_proxy alone) a node's bound is relative to its input:
+// max(meshoptimizer's estimate, the measured distance to the input) + the input's bound; a
 // shell's estimate is its offset (a voxel and half a voxel's diagonal) plus meshoptimizer's.
 //
 // All functions are pure and may run on any number of threads at once.
@@ -38,8 +45,10 @@
 
 #include "src/core/scene.h"
 #include "src/paging/lattice.h"
+#include "src/paging/proxy_bound.h"
 
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <vector>
 
@@ -51,6 +60,8 @@ struct ProxyMesh {
   std::vector<uint32_t> sources;    // per triangle: the input primitive it stands for
   std::vector<uint32_t> materials;  // per triangle
   double error = 0.0;               // object-space bound on the distance to the original geometry
+  double chord_error = 0.0;         // the largest tessellation (and snapping) error of the curved
+                                    // primitives beneath: original geometry is their surface
   uint64_t subtree_triangles = 0;   // triangles of the subtree (tessellated; duplicates dropped
                                     // where a merge still saw both copies)
 
@@ -73,12 +84,18 @@ struct ProxyOptions {
 // What simplify_proxy did, for the build's report.
 struct ProxySimplifyStats {
   bool simplified = false;   // the input had more triangles than the target
+  bool kept_input = false;   // the proxy is the input itself (its bound is the input's)
   bool unlocked = false;     // the locked border kept meshopt_simplify above twice the target: unlocked
   bool shell = false;        // a voxel shell replaced meshopt_simplify's result (unlocked too far)
   bool sloppy = false;       // meshopt_simplifySloppy did (unlocked too far, and no shell)
   double estimate = 0.0;     // meshoptimizer's absolute error (result_error x simplifyScale)
-  double measured = 0.0;     // measured two-sided distance between proxy and input
+  double measured = 0.0;     // measured two-sided distance between proxy and input (with a
+                             // ProxyMeasure: and the original)
+  MeasuredBound bound;       // with a ProxyMeasure: the kept proxy's distances to the original
 };
+
+// Measures a candidate proxy against the original geometry it replaces (proxy_bound.h).
+using ProxyMeasure = std::function<MeasuredBound(const ProxyMesh& candidate)>;
 
 // A leaf's input: `cell`'s primitives as one welded mesh. Triangles are taken as they are (they
 // already lie on the lattice in a Draco store); spheres, cones, boxes and quadrics (as their
@@ -97,8 +114,11 @@ ProxyMesh merge_proxies(const ProxyMesh& lower, const ProxyMesh& upper);
 // opens holes) with the bound described above. Never empty for a non-empty input.
 // `region`: the node's region, which a voxel shell is kept inside (none: the shell may reach a
 // voxel beyond the input).
+// `measure` (the builder's): each candidate's bound is max(input.error, its measured distance to
+// the original + input.chord_error), and the candidates are compared by it; without it, the
+// bound is relative to `input` (see above).
 ProxyMesh simplify_proxy(const ProxyMesh& input, const ProxyOptions& options, ProxySimplifyStats* stats = nullptr,
-                         const Aabb* region = nullptr);
+                         const Aabb* region = nullptr, const ProxyMeasure* measure = nullptr);
 
 // The two-sided distance between a proxy and its input (see above): an upper bound over every
 // point of the input, the largest over the proxy's samples.

@@ -234,6 +234,15 @@ uint32_t TriangleBvh::nearest(const Vec3& p) const {
   return order_[at];
 }
 
+double TriangleBvh::nearest_above(const Vec3& p, double floor, uint32_t* triangle) const {
+  *triangle = UINT32_MAX;
+  if (nodes_.empty()) return kInfinity;
+  uint32_t at = 0;
+  const double d = std::sqrt(search(p, floor, &at));
+  *triangle = order_[at];
+  return d;
+}
+
 double TriangleBvh::farthest_on_triangle(const Vec3& a, const Vec3& b, const Vec3& c, double floor,
                                          double slack) const {
   if (nodes_.empty()) return kInfinity;

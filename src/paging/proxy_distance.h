@@ -33,6 +33,10 @@ class TriangleBvh {
   double distance_above(const Vec3& p, double floor) const;
   // The index (in construction order) of a triangle nearest to p; UINT32_MAX when there are none.
   uint32_t nearest(const Vec3& p) const;
+  // The distance to the nearest triangle and its index (construction order) in `*triangle`, when
+  // it exceeds `floor`; otherwise some value <= floor and a triangle within it. +infinity and
+  // UINT32_MAX when there are none.
+  double nearest_above(const Vec3& p, double floor, uint32_t* triangle) const;
   // An upper bound on the largest distance from any point of the closed triangle (a, b, c) to the
   // mesh, never below its corners' distances: rigorous, not sampled. The distance to one triangle
   // T is convex, so over abc it peaks at a corner, and the mesh lies no farther than T does; the
