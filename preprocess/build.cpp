@@ -211,6 +211,7 @@ struct PendingProxyPage {
   StoreProxy record;
   bool shell = false;
   bool sloppy = false;
+  std::vector<uint8_t> tree;  // the proxy's tree (cell_tree.h), empty: none
 };
 
 // A file of primitives that still has to be turned into cells.
@@ -930,7 +931,10 @@ class StoreBuilder {
     out.sloppy = stats.sloppy;
     out.record.error = proxy.error;
     out.record.subtree_triangles = proxy.subtree_triangles;
-    if (!proxy.empty()) out.page = encode_page(proxy_scene(proxy), codec);
+    if (!proxy.empty()) {
+      out.page = encode_page(proxy_scene(proxy), codec);
+      if (options_.cell_trees && *out.page && (*out.page)->decoded.size() > 0) out.tree = proxy_tree(**out.page, region);
+    }
     const BoundNode& l = bounds[lower_index];
     const BoundNode& u = bounds[upper_index];
     BoundNode b;
@@ -954,6 +958,16 @@ class StoreBuilder {
     return proxy;
   }
 
+  // A proxy page's tree, as with_cell_tree makes a cell's: built with the viewer's proxy
+  // options over the node's region on the proxy as a reader decodes it; empty when it would not
+  // assemble back bit for bit (never seen: the viewer then builds it).
+  std::vector<uint8_t> proxy_tree(const EncodedCell& e, const Aabb& region) const {
+    KdBuildOptions options = proxy_tree_options(cell_tree_options_);
+    options.root = region;
+    auto tree = encode_cell_tree(e.decoded, KdTree::build(e.decoded, options), options);
+    return tree ? std::move(*tree) : std::vector<uint8_t>{};
+  }
+
   // Writes a node's proxy page (if it has one) and keeps its record.
   Status write_proxy(uint32_t node, PendingProxyPage& pending) {
     if (proxies_.size() <= node) proxies_.resize(nodes_.size());
@@ -962,12 +976,20 @@ class StoreBuilder {
     if (!pending.page) return Status::ok();
     Result<EncodedCell>& e = *pending.page;
     if (!e) return e.status();
-    auto page = writer_->add_page(static_cast<uint8_t>(e->codec), e->payload);
+    const bool with_tree = !pending.tree.empty();
+    std::vector<uint8_t> joined;
+    if (with_tree) joined = join_tree_page(pending.tree, e->payload);
+    const std::span<const uint8_t> payload = with_tree ? std::span<const uint8_t>(joined) : e->payload;
+    auto page = writer_->add_page(static_cast<uint8_t>(uint8_t(e->codec) | (with_tree ? kCellTreeFlag : 0)), payload);
     if (!page) return page.status();
     record.page = *page;
     record.triangles = e->decoded.size();
     if (record.triangles == 0) record.page = StoreProxy::kNoPage;  // everything dropped
-    report_.proxy_bytes += e->payload.size() + store::kBlockTrailerSize;
+    report_.proxy_bytes += payload.size() + store::kBlockTrailerSize;
+    if (with_tree) {
+      ++report_.proxy_tree_pages;
+      report_.proxy_tree_bytes += pending.tree.size();
+    }
     report_.proxy_triangles += record.triangles;
     report_.proxy_shells += pending.shell ? 1 : 0;
     report_.proxy_sloppy += pending.sloppy ? 1 : 0;
@@ -1025,10 +1047,15 @@ class StoreBuilder {
     info_.triangles = report_.triangles - snapped_away_;
     info_.degenerate_dropped = report_.degenerate_dropped;
     info_.cell_prims = options_.cell_prims;
-    if (report_.cell_tree_pages > 0) {
+    if (report_.cell_tree_pages > 0 || report_.proxy_tree_pages > 0) {
       info_.cell_tree = cell_tree_options_;
       info_.cell_tree_pages = report_.cell_tree_pages;
       info_.cell_tree_bytes = report_.cell_tree_bytes;
+    }
+    if (report_.proxy_tree_pages > 0) {
+      info_.proxy_tree_cell_prims = proxy_tree_options(cell_tree_options_).max_cell_prims;
+      info_.proxy_tree_pages = report_.proxy_tree_pages;
+      info_.proxy_tree_bytes = report_.proxy_tree_bytes;
     }
     if (grid_) {
       // Every brick becomes a page as soon as it is assembled; the section is their table.

@@ -94,7 +94,8 @@ struct BuildOptions {
   // frontier-build's --proxy-triangles defaults to kDefaultProxyTriangles.
   uint32_t proxy_triangles = 0;
   // Store each cell page's in-cell tree (src/paging/cell_tree.h): the tree frontier-view builds
-  // when it pages the cell in with its default options, so page-in does not run the SAH builder.
+  // when it pages the cell in with its default options, so page-in does not run the SAH builder;
+  // proxy pages carry theirs too.
   bool cell_trees = true;
 };
 
@@ -115,6 +116,8 @@ struct BuildReport {
   uint64_t page_bytes = 0;              // payloads of all pages
   uint64_t cell_tree_pages = 0;         // cell pages carrying an in-cell tree
   uint64_t cell_tree_bytes = 0;         // those trees' bytes (in page_bytes)
+  uint64_t proxy_tree_pages = 0;        // proxy pages carrying their tree
+  uint64_t proxy_tree_bytes = 0;        // those trees' bytes (in proxy_bytes)
   uint64_t sdf_bytes = 0;               // the collision grid: its section and brick pages (--walkable)
   uint64_t sdf_bricks = 0;              // brick pages of the collision grid
   uint64_t sdf_memory = 0;              // most memory the grid held across partitions (index + a brick)

@@ -117,8 +117,8 @@ int main(int argc, char** argv) {
                "\"walkable\": true)");
   bool no_cell_trees = false;
   app.add_flag("--no-cell-trees", no_cell_trees,
-               "store cell pages without their in-cell k-d trees (smaller pages; frontier-view then builds each "
-               "cell's tree when it pages the cell in, as stores before in-cell trees)");
+               "store cell and proxy pages without their k-d trees (smaller pages; frontier-view then builds "
+               "each cell's or proxy's tree when it pages it in, as stores before in-cell trees)");
   bool no_walkable = false;
   auto* no_walk = app.add_flag("--no-walkable", no_walkable, "no collision grid, whatever a sidecar says");
   no_walk->excludes(app.get_option("--walkable"));
@@ -200,10 +200,11 @@ int main(int argc, char** argv) {
     if (r.proxy_pages > 0) {
       std::fprintf(stderr, "%s",
                    fmt::format("  proxies: {} pages, {} triangles, {:.1f} MB ({:.2f} bytes/triangle of the model), "
-                               "{} voxel shells, {} sloppy, root error {:.4g}; {:.1f} s\n",
+                               "{} voxel shells, {} sloppy, root error {:.4g}; {:.1f} s; trees in {} pages, {:.1f} MB\n",
                                r.proxy_pages, r.proxy_triangles, static_cast<double>(r.proxy_bytes) / 1e6,
                                static_cast<double>(r.proxy_bytes) / static_cast<double>(std::max<uint64_t>(r.triangles, 1)),
-                               r.proxy_shells, r.proxy_sloppy, r.proxy_root_error, r.proxy_seconds)
+                               r.proxy_shells, r.proxy_sloppy, r.proxy_root_error, r.proxy_seconds, r.proxy_tree_pages,
+                               static_cast<double>(r.proxy_tree_bytes) / 1e6)
                        .c_str());
     }
     if (!r.portals_sidecar.empty()) {

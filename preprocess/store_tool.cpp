@@ -7,7 +7,7 @@
 //   verify FILE  every checksum, every structural invariant (the portals section included),
 //                every cell page decoded and checked against its cell, every in-cell tree
 //                assembled over its cell, every collision brick decoded, every proxy page decoded
-//                and checked against its record, every page owned by exactly one cell, brick or
+//                (its tree assembled) and checked against its record, every page owned by exactly one cell, brick or
 //                proxy; exit 1 naming the first bad part
 //   proxy FILE NODE -o OUT.ply
 //                node NODE's proxy (its stand-in triangles, as the viewer draws them) as a PLY mesh,
@@ -173,6 +173,10 @@ int info(const std::string& path, uint64_t measure_triangles) {
   } else {
     out += "cell trees  none (frontier-view builds each cell's tree at page-in)\n";
   }
+  if (in.proxy_tree_cell_prims > 0) {
+    out += fmt::format("proxy trees in {} proxy pages, {} bytes; built as the cell trees with max_cell_prims {}\n",
+                       in.proxy_tree_pages, in.proxy_tree_bytes, in.proxy_tree_cell_prims);
+  }
   if (frontier::cell_codec_on_lattice(in.codec)) {
     out += fmt::format("lattice     {} bits, step {:.9g} (max error {:.3g} per axis), origin {}\n", in.lattice.bits,
                        in.lattice.step, in.lattice.max_error(), vec(in.lattice.origin));
@@ -229,7 +233,7 @@ int verify(const std::string& path, bool quiet) {
   const StoreModel& model = **opened;
   frontier::Scene cell;
   std::optional<frontier::KdTree> tree;
-  uint64_t references = 0, decoded_pages = 0, trees = 0;
+  uint64_t references = 0, decoded_pages = 0, trees = 0, proxy_trees = 0;
   std::vector<uint8_t> page_used(pages, 0);
   frontier::Progress progress("verify", "cells", model.cells().size(), quiet);
   for (uint32_t c = 0; c < model.cells().size(); ++c) {
@@ -277,7 +281,11 @@ int verify(const std::string& path, bool quiet) {
           fmt::format("{}: proxy of node {} page {} also belongs to a cell or brick", path, node, proxy->page)));
     }
     page_used[proxy->page] = 1;
-    if (frontier::Status s = model.read_proxy(node, cell); !s) return fail(s);
+    // A proxy's tree, as a cell's, is decoded and assembled over the node's region.
+    frontier::KdBuildOptions proxy_options = model.info().cell_tree.value_or(frontier::KdBuildOptions{});
+    proxy_options.max_cell_prims = model.info().proxy_tree_cell_prims;
+    if (frontier::Status s = model.read_proxy(node, cell, proxy_options, tree); !s) return fail(s);
+    proxy_trees += tree ? 1 : 0;
     ++proxies;
   }
   for (size_t p = 0; p < pages; ++p) {
@@ -291,7 +299,8 @@ int verify(const std::string& path, bool quiet) {
             : "";
     const std::string grid = (bricks > 0 ? fmt::format(", {} collision bricks", bricks) : "") +
                              (proxies > 0 ? fmt::format(", {} proxies", proxies) : "") +
-                             (trees > 0 ? fmt::format(", {} in-cell trees", trees) : "");
+                             (trees > 0 ? fmt::format(", {} in-cell trees", trees) : "") +
+                             (proxy_trees > 0 ? fmt::format(", {} proxy trees", proxy_trees) : "");
     std::printf("%s: ok: %zu pages checksummed, %llu decoded, %llu references in %zu cells, tree depth %u%s%s\n",
                 path.c_str(), pages, static_cast<unsigned long long>(decoded_pages + bricks + proxies),
                 static_cast<unsigned long long>(references), model.cells().size(), model.depth(), portals.c_str(),
@@ -359,7 +368,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   auto* verify_cmd = app.add_subcommand(
       "verify", "check every checksum and structural invariant and decode every page (cells with their in-cell trees, "
-      "collision bricks and proxies); exit 1 "
+      "collision bricks and proxies with their trees); exit 1 "
       "naming the first bad one");
   verify_cmd->add_option("file", path, "store file")->required();
   verify_cmd->add_flag("-q,--quiet", quiet, "print nothing when the store is good");

@@ -311,6 +311,107 @@ TEST(StoreCellTree, DamagedTreesAreCorruptionNamingThePage) {
   EXPECT_GT(corrupt, 3u * 3u);
 }
 
+// Proxy pages carry their trees too: loading one gives exactly the viewer's build of the proxy
+// over its node's region (proxy_tree_options), above and inside the parts of a store split on
+// disk, under every codec; a store without trees has none, and a damaged proxy tree is
+// Corruption naming the node and page.
+TEST(StoreCellTree, ProxyPagesCarryTheViewersProxyTrees) {
+  const std::string input = generated("terrain", 20000);
+  for (const CellCodec codec : {CellCodec::Raw, CellCodec::Draco, CellCodec::Meshopt}) {
+    for (const bool trees : {true, false}) {
+      if (!trees && codec != CellCodec::Draco) continue;
+      const std::string name = std::string("proxytrees_") + std::string(cell_codec_name(codec)) + (trees ? "" : "_none");
+      SCOPED_TRACE(name);
+      BuildOptions o;
+      o.inputs = {input};
+      o.output = (scratch() / (name + ".frontier")).string();
+      o.codec = codec;
+      o.quiet = true;
+      o.threads = 2;
+      o.cell_prims = 64;
+      o.proxy_triangles = 256;
+      o.part_primitives = 4000;  // several parts: nodes above them get proxies as well
+      o.cell_trees = trees;
+      auto report = build_store(o);
+      ASSERT_TRUE(report.is_ok()) << report.status().to_string();
+      ASSERT_GT(report->parts, 2u);
+      auto model = StoreModel::open(o.output);
+      ASSERT_TRUE(model.is_ok()) << model.status().to_string();
+      const StoreModel& m = **model;
+      const StoreModelInfo& info = m.info();
+      EXPECT_EQ(report->proxy_tree_pages, trees ? report->proxy_pages : 0u);
+      EXPECT_EQ(info.proxy_tree_pages, report->proxy_tree_pages);
+      EXPECT_EQ(info.proxy_tree_cell_prims, trees ? kProxyCellPrims : 0u);
+      const KdBuildOptions proxy_options = proxy_tree_options(viewer_refine());
+      uint64_t loaded = 0, above_parts = 0, inner_nodes = 0;
+      for (uint32_t n = 0; n < m.nodes().size(); ++n) {
+        if (m.proxy(n) == nullptr) continue;
+        Scene proxy;
+        std::optional<KdTree> stored;
+        const Status s = m.read_proxy(n, proxy, proxy_options, stored);
+        ASSERT_TRUE(s.is_ok()) << s.to_string();
+        ASSERT_EQ(stored.has_value(), trees) << "node " << n;
+        if (!stored) continue;
+        KdBuildOptions built_options = proxy_options;
+        built_options.root = m.node_region(n);
+        ASSERT_TRUE(same_tree(*stored, KdTree::build(proxy, built_options))) << "node " << n;
+        ++loaded;
+        above_parts += m.proxy(n)->subtree_triangles > o.part_primitives ? 1 : 0;
+        inner_nodes += stored->nodes().size() > 1 ? 1 : 0;
+        // A tree built with other options is not loaded (the viewer builds its own).
+        KdBuildOptions other = proxy_options;
+        other.max_cell_prims = proxy_options.max_cell_prims + 1;
+        ASSERT_TRUE(m.read_proxy(n, proxy, other, stored).is_ok());
+        EXPECT_FALSE(stored.has_value());
+      }
+      if (!trees) {
+        EXPECT_EQ(loaded, 0u);
+        continue;
+      }
+      EXPECT_EQ(loaded, report->proxy_pages);
+      EXPECT_GT(above_parts, 0u);
+      EXPECT_GT(inner_nodes, 0u);  // proxies were refined, not single leaves
+      // Damage: flipped bytes in the tree or its length are Corruption naming node and page.
+      const uint32_t root_page = static_cast<uint32_t>(m.proxy(0)->page);
+      auto page = m.reader().read_page(root_page);
+      ASSERT_TRUE(page.is_ok());
+      ASSERT_NE(page->codec & kCellTreeFlag, 0);
+      std::span<const uint8_t> tree, payload;
+      ASSERT_TRUE(split_tree_page(page->payload, tree, payload).is_ok());
+      const size_t span = page->payload.size() - payload.size();
+      uint32_t corrupt = 0;
+      std::mt19937_64 rng(7);
+      for (size_t at = 0; at < span; ++at) {
+        std::vector<uint8_t> damaged = page->payload;
+        damaged[at] ^= static_cast<uint8_t>(rng() | 1);
+        Scene proxy;
+        std::optional<KdTree> t;
+        const Status s = m.decode_proxy_page(0, page->codec, damaged, proxy, &proxy_options, t);
+        if (s.is_ok()) {
+          EXPECT_TRUE(t.has_value());
+          continue;
+        }
+        ++corrupt;
+        EXPECT_EQ(s.code(), Status::Code::Corruption) << s.to_string();
+        EXPECT_NE(s.message().find("proxy of node 0 page " + std::to_string(root_page)), std::string::npos)
+            << s.to_string();
+        EXPECT_FALSE(t.has_value());
+        EXPECT_EQ(proxy.size(), 0u);
+      }
+      EXPECT_GT(corrupt, 0u);
+      // frontier-store verify loads every proxy tree; info names them.
+      if (codec == CellCodec::Draco) {
+        auto r = run_binary(FRONTIER_STORE_PATH, {"verify", o.output}, scratch());
+        ASSERT_EQ(r.exit_code, 0) << r.err;
+        EXPECT_NE(r.out.find(std::to_string(report->proxy_pages) + " proxy trees"), std::string::npos) << r.out;
+        r = run_binary(FRONTIER_STORE_PATH, {"info", o.output}, scratch());
+        ASSERT_EQ(r.exit_code, 0) << r.err;
+        EXPECT_NE(r.out.find("proxy trees in " + std::to_string(report->proxy_pages)), std::string::npos) << r.out;
+      }
+    }
+  }
+}
+
 // frontier-store info names the trees and their build options; verify assembles every tree.
 TEST(StoreCellTree, StoreToolReportsAndVerifiesTrees) {
   const std::string store = store_of(generated("terrain", 20000), "terrain_draco", CellCodec::Draco, true);

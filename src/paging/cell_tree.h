@@ -19,6 +19,7 @@
 #include "src/core/status.h"
 #include "src/engine/kdtree.h"
 
+#include <algorithm>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -28,6 +29,15 @@ namespace frontier {
 // The bit of a page's codec byte saying that its payload starts with an in-cell tree:
 // varint tree length L, L bytes of tree, then the codec's payload (codec = byte & 0x7f).
 inline constexpr uint8_t kCellTreeFlag = 0x80;
+
+// Proxy pages carry their tree the same way (store/FORMAT.md "In-cell trees"): built with the
+// cells' options but leaves of up to kProxyCellPrims (a proxy spans few pixels: its rays are
+// cheap, the memory of a finer tree's references is not), root = the node's region.
+inline constexpr uint32_t kProxyCellPrims = 64;
+inline KdBuildOptions proxy_tree_options(KdBuildOptions cell_options) {
+  cell_options.max_cell_prims = std::max(cell_options.max_cell_prims, kProxyCellPrims);
+  return cell_options;
+}
 
 // Whether two trees are equal bit for bit: bounds, nodes, cells (bounds, content, references,
 // ropes), references and their clipped bounds, depth.

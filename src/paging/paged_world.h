@@ -283,11 +283,10 @@ class PagedWorld final : public CellGate {
   // Puts `node` back on proxy_wanted_ and asks for its page again (it left the cache).
   void requeue_proxy(uint32_t node);
   // How a proxy's triangles get their tree over node `node`'s region: the cells' refine options
-  // with leaves of up to kProxyCellPrims (a proxy spans few pixels: its rays are cheap, the
-  // memory of a finer tree's references is not).
-  static constexpr uint32_t kProxyCellPrims = 64;
+  // with leaves of up to kProxyCellPrims (cell_tree.h proxy_tree_options).
   KdBuildOptions proxy_build_options(uint32_t node) const;
-  // Decodes node `node`'s proxy page and builds its tree (any thread: reads the model only).
+  // Decodes node `node`'s proxy page and loads its tree from the page, or builds it when the
+  // page carries none built with proxy_build_options (any thread: reads the model only).
   // False when the page left the cache meanwhile.
   bool decode_proxy(uint32_t node, ProxyDecoded& out) const;
   // Takes up to `count` ready cells off wanted_, those to decode first.

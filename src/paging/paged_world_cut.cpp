@@ -2,6 +2,7 @@
 // detail" in paged_world.h and DESIGN.md "Level of detail: one cut per frame").
 #include "src/paging/paged_world.h"
 #include "src/paging/paged_world_internal.h"
+#include "src/paging/cell_tree.h"
 #include "src/core/geometry.h"
 
 #include <fmt/format.h>
@@ -93,16 +94,17 @@ bool PagedWorld::decode_proxy(uint32_t node, ProxyDecoded& out) const {
     out.status = Status::io_error(fmt::format("proxy page {} could not be read", page));
     return true;
   }
-  out.status = model_.decode_proxy_page(node, pin->codec(), pin->bytes(), out.scene);
+  const KdBuildOptions options = proxy_build_options(node);
+  std::optional<KdTree> tree;
+  out.status = model_.decode_proxy_page(node, pin->codec(), pin->bytes(), out.scene, &options, tree);
   pin->reset();
   if (!out.status) return true;
-  out.tree = KdTree::build(out.scene, proxy_build_options(node));
+  out.tree = tree ? std::move(*tree) : KdTree::build(out.scene, options);
   return true;
 }
 
 KdBuildOptions PagedWorld::proxy_build_options(uint32_t node) const {
-  KdBuildOptions options = cell_build_;
-  options.max_cell_prims = std::max(options.max_cell_prims, kProxyCellPrims);
+  KdBuildOptions options = proxy_tree_options(cell_build_);
   options.root = model_.node_region(node);
   return options;
 }

@@ -18,8 +18,9 @@ namespace {
 constexpr size_t kNodeBytes = 16;   // f64 split, u32 axis_or_leaf, u32 child
 constexpr size_t kCellBytes = 112;  // 12 f64 bounds/content, u32 references, u32 0, u64 page
 // Version 2: cell pages may carry in-cell trees (model section `cell_tree`); a store without them
-// is still written as version 1, which readers that predate trees open.
-constexpr int kModelVersion = 2;
+// is still written as version 1, which readers that predate trees open. Version 3: proxy pages
+// carry trees too (`cell_tree.proxy_max_cell_prims`); stores without them are written as before.
+constexpr int kModelVersion = 3;
 
 nlohmann::json vec_json(const Vec3& v) { return nlohmann::json::array({v.x, v.y, v.z}); }
 Vec3 json_vec(const nlohmann::json& j) {
@@ -208,7 +209,7 @@ Status read_proxies(const store::StoreReader& reader, const std::vector<KdTree::
 
 std::vector<uint8_t> StoreModelInfo::to_bytes() const {
   nlohmann::json j;
-  j["version"] = cell_tree ? kModelVersion : 1;
+  j["version"] = proxy_tree_cell_prims > 0 ? kModelVersion : cell_tree ? 2 : 1;
   j["codec"] = std::string(cell_codec_name(codec));
   j["lattice"] = {{"origin", vec_json(lattice.origin)}, {"step", lattice.step}, {"bits", lattice.bits}};
   j["bounds"] = {{"lo", vec_json(bounds.lo)}, {"hi", vec_json(bounds.hi)}};
@@ -247,6 +248,11 @@ std::vector<uint8_t> StoreModelInfo::to_bytes() const {
                       {"bins", o.bins},
                       {"pages", cell_tree_pages},
                       {"bytes", cell_tree_bytes}};
+    if (proxy_tree_cell_prims > 0) {
+      j["cell_tree"]["proxy_max_cell_prims"] = proxy_tree_cell_prims;
+      j["cell_tree"]["proxy_pages"] = proxy_tree_pages;
+      j["cell_tree"]["proxy_bytes"] = proxy_tree_bytes;
+    }
   }
   const std::string text = j.dump(1);
   return {text.begin(), text.end()};
@@ -322,6 +328,12 @@ Result<StoreModelInfo> StoreModelInfo::from_bytes(std::span<const uint8_t> bytes
       info.cell_tree = o;
       info.cell_tree_pages = t.at("pages").get<uint64_t>();
       info.cell_tree_bytes = t.at("bytes").get<uint64_t>();
+      if (t.contains("proxy_max_cell_prims")) {  // stores built before proxy trees have none
+        info.proxy_tree_cell_prims = t.at("proxy_max_cell_prims").get<uint32_t>();
+        info.proxy_tree_pages = t.at("proxy_pages").get<uint64_t>();
+        info.proxy_tree_bytes = t.at("proxy_bytes").get<uint64_t>();
+        if (info.proxy_tree_cell_prims == 0) throw std::runtime_error("cell_tree.proxy_max_cell_prims is 0");
+      }
     }
   } catch (const std::exception& e) {
     return Status::corruption(fmt::format("{}: model section: {}", where, e.what()));
@@ -415,25 +427,56 @@ Aabb StoreModel::node_region(uint32_t node) const {
 }
 
 Status StoreModel::read_proxy(uint32_t node, Scene& out) const {
+  std::optional<KdTree> none;
+  return read_proxy(node, out, nullptr, none);
+}
+
+Status StoreModel::read_proxy(uint32_t node, Scene& out, const KdBuildOptions& options,
+                              std::optional<KdTree>& tree) const {
+  return read_proxy(node, out, &options, tree);
+}
+
+Status StoreModel::read_proxy(uint32_t node, Scene& out, const KdBuildOptions* options,
+                              std::optional<KdTree>& tree) const {
   out = Scene{};
+  tree.reset();
   const StoreProxy* p = proxy(node);
   if (p == nullptr) return Status::invalid_argument(fmt::format("{}: node {} has no proxy page", reader_->name(), node));
   auto page = reader_->read_page(p->page);
   if (!page) {
     return page.status().prefixed(fmt::format("proxy of node {} page {}: ", node, p->page));
   }
-  return decode_proxy_page(node, page->codec, page->payload, out);
+  return decode_proxy_page(node, page->codec, page->payload, out, options, tree);
 }
 
 Status StoreModel::decode_proxy_page(uint32_t node, uint8_t codec, std::span<const uint8_t> payload,
                                      Scene& out) const {
+  std::optional<KdTree> none;
+  return decode_proxy_page(node, codec, payload, out, nullptr, none);
+}
+
+// A proxy page: as a cell page (decode_page), its tree built with the proxy options
+// (cell_tree.h proxy_tree_options) over the node's region.
+Status StoreModel::decode_proxy_page(uint32_t node, uint8_t codec, std::span<const uint8_t> payload, Scene& out,
+                                     const KdBuildOptions* options, std::optional<KdTree>& tree) const {
   out = Scene{};
+  tree.reset();
   const StoreProxy* p = proxy(node);
   if (p == nullptr) return Status::invalid_argument(fmt::format("{}: node {} has no proxy page", reader_->name(), node));
   const auto corrupt = [&](const std::string& why) {
     out = Scene{};
+    tree.reset();
     return Status::corruption(fmt::format("{}: proxy of node {} page {}: {}", reader_->name(), node, p->page, why));
   };
+  std::span<const uint8_t> tree_bytes;
+  const bool has_tree = (codec & kCellTreeFlag) != 0;
+  if (has_tree) {
+    if (!info_.cell_tree || info_.proxy_tree_cell_prims == 0) {
+      return corrupt("carries a tree but the model section records no proxy trees");
+    }
+    if (Status s = split_tree_page(payload, tree_bytes, payload); !s) return corrupt(s.message());
+    codec = static_cast<uint8_t>(codec & ~kCellTreeFlag);
+  }
   if (!is_cell_codec(codec)) return corrupt(fmt::format("unknown codec {}", codec));
   if (Status s = decode_cell(payload, static_cast<CellCodec>(codec), info_.lattice, out); !s) return corrupt(s.message());
   if (out.size() != p->triangles || out.triangles.size() != out.size()) {
@@ -455,6 +498,13 @@ Status StoreModel::decode_proxy_page(uint32_t node, uint8_t codec, std::span<con
       return corrupt(fmt::format("triangle {} lies outside the model", i));
     }
   }
+  if (!has_tree || options == nullptr) return Status::ok();
+  KdBuildOptions stored = *info_.cell_tree;
+  stored.max_cell_prims = info_.proxy_tree_cell_prims;
+  if (!same_cell_build(*options, stored)) return Status::ok();
+  auto decoded = decode_cell_tree(tree_bytes, out, node_region(node), *options);
+  if (!decoded) return corrupt(decoded.status().message());
+  tree.emplace(std::move(*decoded));
   return Status::ok();
 }
 

@@ -64,6 +64,12 @@ struct StoreModelInfo {
   std::optional<KdBuildOptions> cell_tree;
   uint64_t cell_tree_pages = 0;
   uint64_t cell_tree_bytes = 0;
+  // Set (non-zero) when proxy pages carry their trees too: built with cell_tree's options but
+  // leaves of up to this many primitives (cell_tree.h proxy_tree_options); how many proxy pages
+  // carry one and their trees' bytes. Requires cell_tree.
+  uint32_t proxy_tree_cell_prims = 0;
+  uint64_t proxy_tree_pages = 0;
+  uint64_t proxy_tree_bytes = 0;
 
   std::vector<uint8_t> to_bytes() const;
   static Result<StoreModelInfo> from_bytes(std::span<const uint8_t> bytes, const std::string& where);
@@ -119,8 +125,16 @@ class StoreModel {
   // the page's checksum or contents are bad (a triangle count other than the record's, a bad
   // source or material, a triangle outside the node's region). Thread-safe.
   Status read_proxy(uint32_t node, Scene& out) const;
-  // The same for a proxy page already read (by the page cache).
+  // read_proxy with the page's tree, as read_cell with options above: `tree` is the tree
+  // KdTree::build(out, options) would give with options.root = the node's region when the page
+  // carries one built with `options` (root aside; same_cell_build), else empty.
+  Status read_proxy(uint32_t node, Scene& out, const KdBuildOptions& options, std::optional<KdTree>& tree) const;
+  // The same for a proxy page already read (by the page cache); with `options` null the page's
+  // tree, if any, is skipped (not checked).
   Status decode_proxy_page(uint32_t node, uint8_t codec, std::span<const uint8_t> payload, Scene& out) const;
+  Status decode_proxy_page(uint32_t node, uint8_t codec, std::span<const uint8_t> payload, Scene& out,
+                           const KdBuildOptions* options, std::optional<KdTree>& tree) const;
+  Status read_proxy(uint32_t node, Scene& out, const KdBuildOptions* options, std::optional<KdTree>& tree) const;
   // Node `node`'s region (the root's is info().bounds). REQUIRES: node < nodes().size().
   Aabb node_region(uint32_t node) const;
 

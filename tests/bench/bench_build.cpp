@@ -5,7 +5,10 @@
 // (triangles/s and the ratio to the floor), store bytes per triangle, and the decode speed of
 // every page (pages read into memory first, so only decoding is timed), of refining every
 // decoded page into the subtree frontier-view builds when it pages the cell in, and of loading
-// that subtree from the page's in-cell tree instead (checked equal to the refine). Prints Markdown.
+// that subtree from the page's in-cell tree instead (checked equal to the refine). With
+// --proxy-triangles N the stores get proxies, and a second table gives, per proxy page, decode,
+// building its tree as frontier-view did before proxy pages carried trees, and loading the
+// stored tree (checked equal). Prints Markdown.
 #include "preprocess/build.h"
 #include "src/core/progress.h"
 #include "src/paging/cell_tree.h"
@@ -75,6 +78,9 @@ struct Decode {
   // refining those same pages costs, so the two per-primitive figures compare like for like.
   double load_seconds = 0.0, refine_tree_pages_seconds = 0.0;
   uint64_t tree_bytes = 0, tree_primitives = 0, tree_mismatches = 0;
+  // Proxy pages: decode, build of the proxy's tree (proxy_tree_options), load of the stored one.
+  uint64_t proxies = 0, proxy_triangles = 0, proxy_trees = 0;
+  double proxy_decode_seconds = 0.0, proxy_build_seconds = 0.0, proxy_load_seconds = 0.0;
 };
 
 Decode decode_all(const std::string& store) {
@@ -118,6 +124,31 @@ Decode decode_all(const std::string& store) {
     d.tree_primitives += cell.size();
     if (!stored || !same_tree(*stored, subtree)) ++d.tree_mismatches;
   }
+  const StoreModel& m = **model;
+  KdBuildOptions proxy_options = proxy_tree_options(page_refine_options(WalkOptions{}));
+  for (uint32_t n = 0; n < m.nodes().size(); ++n) {
+    if (m.proxy(n) == nullptr) continue;
+    auto p = m.reader().read_page(m.proxy(n)->page);
+    if (!p) continue;
+    proxy_options.root = m.node_region(n);
+    std::optional<KdTree> none;
+    auto t = std::chrono::steady_clock::now();
+    if (!m.decode_proxy_page(n, p->codec, p->payload, cell, nullptr, none)) continue;
+    d.proxy_decode_seconds += since(t);
+    ++d.proxies;
+    d.proxy_triangles += cell.size();
+    t = std::chrono::steady_clock::now();
+    const KdTree built = KdTree::build(cell, proxy_options);
+    d.proxy_build_seconds += since(t);
+    if ((p->codec & kCellTreeFlag) == 0) continue;
+    std::span<const uint8_t> tree_bytes, payload;
+    if (!split_tree_page(p->payload, tree_bytes, payload)) continue;
+    t = std::chrono::steady_clock::now();
+    Result<KdTree> stored = decode_cell_tree(tree_bytes, cell, m.node_region(n), proxy_options);
+    d.proxy_load_seconds += since(t);
+    ++d.proxy_trees;
+    if (!stored || !same_tree(*stored, built)) ++d.tree_mismatches;
+  }
   return d;
 }
 
@@ -131,16 +162,21 @@ int main(int argc, char** argv) {
   std::vector<std::string> codecs = {"draco"};
   std::string memory = "1G", output = "bench_build.frontier";
   int threads = 2;
+  uint32_t proxy_triangles = 0;
   bool spill_inputs = false;
   app.add_option("models", models, "model files (binary PLY from frontier-gen, ...)")->required();
   app.add_option("--bits", bits, "lattice bits to measure (Draco)");
   app.add_option("--codecs", codecs, "codecs to measure: draco, meshopt, raw");
   app.add_option("--memory", memory, "build memory budget");
   app.add_option("--threads", threads, "build threads");
+  app.add_option("--proxy-triangles", proxy_triangles,
+                 "give the stores proxies of this many triangles (frontier-build's option; 0: none, as before) and "
+                 "print a second table: per proxy page, decode, tree build and stored-tree load");
   app.add_option("-o,--output", output, "scratch store path (removed at the end)");
   app.add_flag("--spill-inputs", spill_inputs,
                "spill binary PLY inputs to a temporary file first instead of parsing them again (the old path)");
   CLI11_PARSE(app, argc, argv);
+  std::string proxy_rows;
 
   std::printf("| model | codec | bits | triangles | build s | Mtri/s | I/O floor s | build/floor | MB | bytes/tri | "
               "decode MB/s | decode Mtri/s | refine us/prim | tree load us/prim | refine/load | tree bytes/tri |\n"
@@ -161,6 +197,7 @@ int main(int argc, char** argv) {
         o.quant_bits = b;
         o.threads = threads;
         o.quiet = true;
+        o.proxy_triangles = proxy_triangles;
         o.reparse_binary_ply = !spill_inputs;
         o.memory = parse_byte_size(memory).value_or(uint64_t{1} << 30);
         drop_cache(model);
@@ -190,6 +227,18 @@ int main(int argc, char** argv) {
                        static_cast<unsigned long long>(d.tree_mismatches));
           return 1;
         }
+        if (d.proxies > 0) {
+          const double n = static_cast<double>(d.proxies);
+          proxy_rows += fmt::format("| {} | {} | {} | {:.0f} | {:.1f} | {:.1f} | {:.1f} | {:.1f} | {:.2f} |\n",
+                                    std::filesystem::path(model).filename().string(), codec, d.proxies,
+                                    static_cast<double>(d.proxy_triangles) / n, d.proxy_decode_seconds * 1e6 / n,
+                                    d.proxy_build_seconds * 1e6 / n,
+                                    d.proxy_trees > 0 ? d.proxy_load_seconds * 1e6 / double(d.proxy_trees) : 0.0,
+                                    (d.proxy_decode_seconds + d.proxy_build_seconds) * 1e6 / n,
+                                    d.proxy_trees > 0 ? (d.proxy_decode_seconds + d.proxy_build_seconds) /
+                                                            std::max(d.proxy_decode_seconds + d.proxy_load_seconds, 1e-12)
+                                                      : 0.0);
+        }
         std::fprintf(stderr, "  %s: read %.1f s, partition %.1f s, build %.1f s, encode %.1f s; %llu parts, %.2f GB spilled\n",
                      model.c_str(), report->ingest_seconds, report->spill_seconds, report->build_seconds,
                      report->encode_seconds, static_cast<unsigned long long>(report->parts),
@@ -198,6 +247,11 @@ int main(int argc, char** argv) {
         std::filesystem::remove(output);
       }
     }
+  }
+  if (!proxy_rows.empty()) {
+    std::printf("\n| model | codec | proxies | triangles/proxy | decode us | tree build us | tree load us | decode+build us | "
+                "(decode+build)/(decode+load) |\n|---|---|---:|---:|---:|---:|---:|---:|---:|\n%s",
+                proxy_rows.c_str());
   }
   return 0;
 }
