@@ -7,10 +7,10 @@
 // decoded page into the subtree frontier-view builds when it pages the cell in, and of loading
 // that subtree from the page's in-cell tree instead (checked equal to the refine). Prints Markdown.
 #include "preprocess/build.h"
+#include "src/codec/cell_tree.h"
 #include "src/core/progress.h"
-#include "src/paging/cell_tree.h"
 #include "src/paging/store_model.h"
-#include "src/paging/walkthrough.h"
+#include "src/walk/walkthrough.h"
 
 #include <CLI/CLI.hpp>
 #include <fmt/core.h>

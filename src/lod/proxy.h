@@ -43,9 +43,9 @@
 // All functions are pure and may run on any number of threads at once.
 #pragma once
 
+#include "src/codec/lattice.h"
 #include "src/core/scene.h"
-#include "src/paging/lattice.h"
-#include "src/paging/proxy_bound.h"
+#include "src/lod/proxy_bound.h"
 
 #include <cstdint>
 #include <functional>

@@ -3,7 +3,7 @@
 // pins the bricks it touches (shared pointers: eviction never frees a brick a query still reads)
 // and keeps one unregistered accessor per brick, so the nearby samples of a gradient or a walk
 // cost a tree lookup each and the cache's mutex only once per brick per query.
-#include "src/paging/collision_grid.h"
+#include "src/walk/collision_grid.h"
 
 #include "src/core/byte_io.h"
 

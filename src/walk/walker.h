@@ -1,5 +1,5 @@
 // Walk mode: the camera physics of frontier-view for stores that carry a collision grid (the
-// "sdf" section, src/paging/collision_grid.h). Each frame the caller asks for a *desired* eye (WASD
+// "sdf" section, src/walk/collision_grid.h). Each frame the caller asks for a *desired* eye (WASD
 // and mouse in the window, the next path frame headless) and gets back where the eye may go:
 // moved horizontally with collision, up low steps, down stairs, and under gravity. Stores
 // without an sdf section have no walk mode; the viewer flies there and constructs no Walker,
@@ -25,7 +25,7 @@
 // outlive the Walker.
 #pragma once
 
-#include "src/paging/collision_grid.h"
+#include "src/walk/collision_grid.h"
 #include "src/core/geometry.h"
 #include "src/core/status.h"
 

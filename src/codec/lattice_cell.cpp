@@ -1,8 +1,8 @@
 // The parts the lattice codecs share (contracts: lattice_cell.h).
-#include "src/paging/lattice_cell.h"
+#include "src/codec/lattice_cell.h"
 
-#include "src/paging/cell_codec_impl.h"
-#include "src/paging/value_stream.h"
+#include "src/codec/cell_codec_impl.h"
+#include "src/codec/value_stream.h"
 
 #include <fmt/format.h>
 

@@ -1,8 +1,8 @@
 // Proxy bounds against the original geometry, by branch and bound down the hierarchy (the
 // argument and contracts in proxy_bound.h).
-#include "src/paging/proxy_bound.h"
+#include "src/lod/proxy_bound.h"
 
-#include "src/paging/proxy_distance.h"
+#include "src/lod/proxy_distance.h"
 
 #include <algorithm>
 #include <cmath>

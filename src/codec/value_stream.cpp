@@ -10,7 +10,7 @@
 // Sources are stored as zigzag differences to the previous source (the first to 0): Draco's
 // face order mostly follows the input order, so most differences are +1 and entropy-code to a
 // fraction of a bit.
-#include "src/paging/value_stream.h"
+#include "src/codec/value_stream.h"
 
 #include <draco/compression/config/compression_shared.h>
 #include <draco/compression/entropy/symbol_decoding.h>

@@ -15,10 +15,10 @@
 // meshopt_codec.cpp; the interface is cell_codec_impl.h) and cell_codec.cpp dispatches on the tag.
 #pragma once
 
+#include "src/codec/lattice.h"
 #include "src/core/geometry.h"
 #include "src/core/scene.h"
 #include "src/core/status.h"
-#include "src/paging/lattice.h"
 
 #include <cstdint>
 #include <optional>

@@ -10,9 +10,9 @@
 // is pure and may run on several threads at once.
 #pragma once
 
+#include "src/codec/lattice.h"
 #include "src/core/geometry.h"
 #include "src/core/status.h"
-#include "src/paging/lattice.h"
 
 #include <draco/mesh/mesh.h>
 

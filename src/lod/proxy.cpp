@@ -1,10 +1,10 @@
 // Proxy meshes: leaf inputs, merges and meshoptimizer simplification with a measured bound
 // (contracts and the bound's argument in proxy.h).
-#include "src/paging/proxy.h"
+#include "src/lod/proxy.h"
 
 #include "src/core/tessellate.h"
-#include "src/paging/proxy_distance.h"
-#include "src/paging/proxy_shell.h"
+#include "src/lod/proxy_distance.h"
+#include "src/lod/proxy_shell.h"
 
 #include <meshoptimizer.h>
 

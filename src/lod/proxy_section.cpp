@@ -1,5 +1,5 @@
 // The `proxies` section: framing and records (layout in store/FORMAT.md "proxies").
-#include "src/paging/proxy_section.h"
+#include "src/lod/proxy_section.h"
 
 #include "src/core/byte_io.h"
 #include "store/section_frame.h"

@@ -8,10 +8,10 @@
 // low end of the occupied extent (candidate 0), 1 = its high end (candidate B), 2 = a bin boundary
 // (candidate 1..B-1, in the second stream), 3 = a stored double. Two small alphabets instead of
 // one of 3·(B+1) + 4 symbols: the entropy coder's per-page tables are most of a page's tree.
-#include "src/paging/cell_tree.h"
+#include "src/codec/cell_tree.h"
 
+#include "src/codec/value_stream.h"
 #include "src/core/byte_io.h"
-#include "src/paging/value_stream.h"
 
 #include <fmt/format.h>
 

@@ -1,10 +1,10 @@
 // The raw body (layout: store/FORMAT.md "Raw body"; contracts: raw_body.h). Decoding checks
 // before it allocates: counts against the bytes left, then the streams, then the doubles, then
 // the primitives' references into the arrays just read.
-#include "src/paging/raw_body.h"
+#include "src/codec/raw_body.h"
 
-#include "src/paging/cell_codec_impl.h"
-#include "src/paging/value_stream.h"
+#include "src/codec/cell_codec_impl.h"
+#include "src/codec/value_stream.h"
 
 #include <algorithm>
 #include <array>

@@ -1,6 +1,6 @@
 // The global lattice (contract: lattice.h). Quantizing must give the same index for the same
 // double on every machine and in every cell, hence the explicit rounding below.
-#include "src/paging/lattice.h"
+#include "src/codec/lattice.h"
 
 #include <fmt/format.h>
 

@@ -10,11 +10,11 @@
 // Decoding trusts nothing: the header's counts are checked against the bytes left, the Draco
 // stream's own counts against the header before Draco sees them, and everything Draco hands
 // back is range-checked (draco_stream.h).
-#include "src/paging/cell_codec_impl.h"
-#include "src/paging/dense_ids.h"
-#include "src/paging/draco_stream.h"
-#include "src/paging/lattice_cell.h"
-#include "src/paging/raw_body.h"
+#include "src/codec/cell_codec_impl.h"
+#include "src/codec/dense_ids.h"
+#include "src/codec/draco_stream.h"
+#include "src/codec/lattice_cell.h"
+#include "src/codec/raw_body.h"
 
 #include <algorithm>
 #include <array>

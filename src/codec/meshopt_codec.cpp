@@ -14,9 +14,9 @@
 // allocated (meshoptimizer's streams cannot hold more than a fixed number of vertices or
 // triangles per byte), meshoptimizer's decoders are documented safe on untrusted input, and
 // every index and offset they return is range-checked before use.
-#include "src/paging/cell_codec_impl.h"
-#include "src/paging/lattice_cell.h"
-#include "src/paging/raw_body.h"
+#include "src/codec/cell_codec_impl.h"
+#include "src/codec/lattice_cell.h"
+#include "src/codec/raw_body.h"
 
 #include <meshoptimizer.h>
 

@@ -1,6 +1,6 @@
 // Point-to-mesh distances (contracts in proxy_distance.h). The closest point on a triangle is
 // Ericson's region test (Real-Time Collision Detection, 5.1.5), in double.
-#include "src/paging/proxy_distance.h"
+#include "src/lod/proxy_distance.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,8 +1,8 @@
 // Walkthrough: the out-of-core frame loop (see walkthrough.h).
-#include "src/paging/walkthrough.h"
+#include "src/walk/walkthrough.h"
 
 #include "src/engine/render.h"
-#include "src/paging/walker.h"
+#include "src/walk/walker.h"
 
 #include <nlohmann/json.hpp>
 

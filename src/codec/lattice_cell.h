@@ -10,11 +10,11 @@
 // codec and byte offset.
 #pragma once
 
+#include "src/codec/dense_ids.h"
+#include "src/codec/lattice.h"
 #include "src/core/byte_io.h"
 #include "src/core/scene.h"
 #include "src/core/status.h"
-#include "src/paging/dense_ids.h"
-#include "src/paging/lattice.h"
 
 #include <array>
 #include <cstdint>

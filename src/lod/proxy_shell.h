@@ -1,5 +1,5 @@
 // Voxel shells: a closed surface around a triangle soup, for proxies the topological simplifier
-// cannot bring down (src/paging/proxy.h). meshoptimizer's clustering ("sloppy") reaches any size
+// cannot bring down (src/lod/proxy.h). meshoptimizer's clustering ("sloppy") reaches any size
 // but collapses every feature thinner than its grid — a building's walls, floors and roof vanish
 // and a viewer shows its rooms through holes. The shell keeps them: OpenVDB samples the unsigned
 // distance to the input on a grid of about `resolution` voxels along the input's longest side
@@ -15,8 +15,8 @@
 // Draco and meshopt codecs store lattice positions). The caller measures the proxy's bound.
 #pragma once
 
+#include "src/codec/lattice.h"
 #include "src/core/geometry.h"
-#include "src/paging/lattice.h"
 
 #include <bit>
 #include <cstdint>

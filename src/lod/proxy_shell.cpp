@@ -1,5 +1,5 @@
 // Voxel shells around triangle soups (contract in proxy_shell.h).
-#include "src/paging/proxy_shell.h"
+#include "src/lod/proxy_shell.h"
 
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/Dense.h>

@@ -1,4 +1,4 @@
-// What every cell page codec implements (internal to src/paging; the public contract is
+// What every cell page codec implements (internal to src/codec; the public contract is
 // cell_codec.h). Each codec is one .cpp that defines one CellCodecImpl; cell_codec.cpp checks
 // the scene, then dispatches on the tag through its table of them. Adding a codec: its tag in
 // CellCodec, its file, its declaration below and its entry in cell_codec.cpp's table. The shared
@@ -7,7 +7,7 @@
 // lattice triangles and the rest (lattice_cell.h).
 #pragma once
 
-#include "src/paging/cell_codec.h"
+#include "src/codec/cell_codec.h"
 
 #include <fmt/format.h>
 

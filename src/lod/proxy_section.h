@@ -1,6 +1,6 @@
 // The `proxies` section of a model store: one record per node of the top tree (store/FORMAT.md
 // "proxies"). An interior node's record names its proxy page (a cell-codec page of triangles
-// standing in for the whole subtree, src/paging/proxy.h) and the proxy's object-space error bound;
+// standing in for the whole subtree, src/lod/proxy.h) and the proxy's object-space error bound;
 // a leaf's record has no page. Framed by store/section_frame.h (magic `FPXY`), so a damaged or
 // newer section is refused with a clear error. Both functions are pure; decode is safe on
 // untrusted bytes.

@@ -1,5 +1,5 @@
 // Distances between a point and a triangle mesh, for measuring how far a proxy lies from the
-// geometry it stands for (src/paging/proxy.h). A TriangleBvh is a small bounding volume hierarchy
+// geometry it stands for (src/lod/proxy.h). A TriangleBvh is a small bounding volume hierarchy
 // (median splits on the longest axis, four triangles a leaf) answering "how far is the nearest
 // triangle" by branch and bound: O(log n) per query on surfaces, O(n log n) to build. Everything is
 // in double precision, so meshes far from the origin (1e6) measure as well as those at it.

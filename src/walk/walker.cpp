@@ -3,7 +3,7 @@
 // the foot probe (floor_gap), a sphere trace down the distance field that never steps over a
 // surface because it advances at most d - foot_clearance() from a point reading d, and a point
 // reading d is truly at least d - 0.94 h from everything (foot_clearance() >= h).
-#include "src/paging/walker.h"
+#include "src/walk/walker.h"
 
 #include <fmt/format.h>
 

@@ -1,4 +1,4 @@
-// A proxy's error bound measured against the original geometry it replaces (src/paging/proxy.h;
+// A proxy's error bound measured against the original geometry it replaces (src/lod/proxy.h;
 // DESIGN.md "The k-d tree, in two levels, with a proxy at every interior node").
 //
 // The builder keeps, for the subtree below a node, a hierarchy of BoundNodes: a leaf holds its

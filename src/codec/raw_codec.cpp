@@ -1,7 +1,7 @@
 // The raw cell codec (tag 0; store/FORMAT.md "Raw payload"): one magic/version byte, then a raw
 // body of every primitive, bit for bit, on or off a lattice. It ignores the lattice.
-#include "src/paging/cell_codec_impl.h"
-#include "src/paging/raw_body.h"
+#include "src/codec/cell_codec_impl.h"
+#include "src/codec/raw_body.h"
 
 #include <string_view>
 

@@ -1,8 +1,8 @@
 // Cell page codecs: the checks every codec shares and the dispatch on the codec tag (contracts:
 // cell_codec.h; one file per codec behind the interface of cell_codec_impl.h).
-#include "src/paging/cell_codec.h"
+#include "src/codec/cell_codec.h"
 
-#include "src/paging/cell_codec_impl.h"
+#include "src/codec/cell_codec_impl.h"
 
 #include <fmt/format.h>
 

@@ -1,5 +1,5 @@
 // The Draco stream of a Draco cell page (contracts: draco_stream.h).
-#include "src/paging/draco_stream.h"
+#include "src/codec/draco_stream.h"
 
 #include "store/byte_stream.h"
 
