@@ -17,7 +17,7 @@
 //               and written as one page. A part that turns out larger than planned is split
 //               again on disk the same way before it is built.
 //               With proxies (--proxy-triangles N > 0), the part's tree then gets a proxy page
-//               at every interior node, bottom-up (src/paging/proxy.h), and the part's root mesh
+//               at every interior node, bottom-up (src/lod/proxy.h), and the part's root mesh
 //               waits on a stack until its sibling is done; the plan's nodes above the parts
 //               merge and simplify those pending meshes as their second child finishes. The
 //               stack holds at most one mesh of about N triangles per level of the plan.
@@ -45,7 +45,7 @@
 // which grow with the model and leave parts less room as they do.
 #pragma once
 
-#include "src/paging/cell_codec.h"
+#include "src/codec/cell_codec.h"
 #include "src/core/status.h"
 
 #include <cstdint>
@@ -88,12 +88,12 @@ struct BuildOptions {
   // of writing all primitives to a temporary file first (cheaper than the file's write and
   // read). Tests turn it off to cover the spill path with PLY inputs.
   bool reparse_binary_ply = true;
-  // Triangles a proxy page of an interior node aims at (src/paging/proxy.h; at most twice as many
+  // Triangles a proxy page of an interior node aims at (src/lod/proxy.h; at most twice as many
   // where meshoptimizer's locked borders stop it, fewer for a subtree with fewer); 0: no proxies.
   // 0 here (none: the library's callers, tests and benchmarks of cells alone, opt in);
   // frontier-build's --proxy-triangles defaults to kDefaultProxyTriangles.
   uint32_t proxy_triangles = 0;
-  // Store each cell page's in-cell tree (src/paging/cell_tree.h): the tree frontier-view builds
+  // Store each cell page's in-cell tree (src/codec/cell_tree.h): the tree frontier-view builds
   // when it pages the cell in with its default options, so page-in does not run the SAH builder;
   // proxy pages carry theirs too.
   bool cell_trees = true;

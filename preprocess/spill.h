@@ -14,9 +14,9 @@
 // build that wrote it.
 #pragma once
 
+#include "src/codec/lattice.h"
 #include "src/core/scene.h"
 #include "src/core/status.h"
-#include "src/paging/lattice.h"
 
 #include <array>
 #include <cstdint>

@@ -12,10 +12,10 @@
 //   proxy FILE NODE -o OUT.ply
 //                node NODE's proxy (its stand-in triangles, as the viewer draws them) as a PLY mesh,
 //                to look at; prints its error bound and triangle count
-#include "src/paging/collision_grid.h"
+#include "src/walk/collision_grid.h"
 #include "src/core/progress.h"
 #include "src/io/ply_writer.h"
-#include "src/paging/proxy.h"
+#include "src/lod/proxy.h"
 #include "src/paging/store_model.h"
 #include "store/page_file.h"
 #include "store/store_file.h"

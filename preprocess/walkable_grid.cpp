@@ -7,7 +7,7 @@
 #include "preprocess/walkable_grid.h"
 
 #include "src/core/byte_io.h"
-#include "src/paging/collision_grid.h"
+#include "src/walk/collision_grid.h"
 #include "src/core/tessellate.h"
 #include "store/page_format.h"
 

@@ -3,7 +3,7 @@
 // distance grid and spills that band to a temporary file at once, cut into 64^3-voxel bricks.
 // finish() reads the spill back brick by brick, merges each brick's pieces, hands every brick to a
 // sink as one OpenVDB stream (the store makes it a page) and returns the store's "sdf" section,
-// the brick table (layout in src/paging/collision_grid.h, whose CollisionGrid pages the bricks in the
+// the brick table (layout in src/walk/collision_grid.h, whose CollisionGrid pages the bricks in the
 // viewer). Memory: the partition's triangles, a few slabs' band in flight, the spill index and, in
 // finish(), one brick; never the whole grid (which for a 20 M-triangle building at 10 cm is about
 // 2.4 GB in memory, 257 MB serialized).
@@ -54,11 +54,11 @@
 // partition in parallel (TBB) and appends each to the spill under a lock.
 #pragma once
 
-#include "src/paging/collision_grid.h"
+#include "src/walk/collision_grid.h"
 #include "src/core/geometry.h"
 #include "src/core/scene.h"
 #include "src/core/status.h"
-#include "src/paging/proxy_distance.h"
+#include "src/lod/proxy_distance.h"
 
 #include <cstdint>
 #include <functional>
@@ -68,7 +68,7 @@
 
 namespace frontier {
 
-// The builder writes point_triangle_distance (src/paging/proxy_distance.h) at every voxel centre;
+// The builder writes point_triangle_distance (src/lod/proxy_distance.h) at every voxel centre;
 // it is also bench_accuracy's reference.
 
 class WalkableGridBuilder {
@@ -117,7 +117,7 @@ class WalkableGridBuilder {
   Status add_partition(const Scene& part, const Aabb& region);
 
   // Hands every non-empty brick to `sink`, in brick coordinate order, and returns the "sdf"
-  // section bytes naming the pages the sink returned (src/paging/collision_grid.h). Deterministic: the
+  // section bytes naming the pages the sink returned (src/walk/collision_grid.h). Deterministic: the
   // same partitions give the same bricks and bytes, whatever their order and the threads. The
   // builder stays usable (more partitions may follow; finish() again gives the larger grid).
   Result<std::vector<uint8_t>> finish(const BrickSink& sink);

@@ -3,7 +3,7 @@
 // codec's payloads go through.
 #pragma once
 
-#include "src/paging/cell_codec.h"
+#include "src/codec/cell_codec.h"
 
 #include <gtest/gtest.h>
 

@@ -5,7 +5,7 @@
 #include "preprocess/build.h"
 #include "src/io/load_scene.h"
 #include "src/paging/store_model.h"
-#include "src/paging/collision_grid.h"
+#include "src/walk/collision_grid.h"
 #include "store/page_file.h"
 #include "store/store_file.h"
 #include "tests/engine_util.h"

@@ -3,7 +3,7 @@
 // order EncodedCell::decoded announces; a vertex shared by two cells decodes to the same double
 // in both; damaged payloads (every truncation, hundreds of flipped bytes) give a Status, never
 // a crash; a smooth mesh costs a few bytes per triangle.
-#include "src/paging/cell_codec.h"
+#include "src/codec/cell_codec.h"
 #include "tests/cell_codec_util.h"
 
 #include <gtest/gtest.h>

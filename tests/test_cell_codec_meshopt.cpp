@@ -1,12 +1,12 @@
-// The meshopt cell codec (src/paging/meshopt_codec.cpp): a terrain-like cell far from the origin
+// The meshopt cell codec (src/codec/meshopt_codec.cpp): a terrain-like cell far from the origin
 // and a mixed cell (sources, materials, normals, curved primitives) round-trip on the lattice,
 // damaged pages give Corruption naming the cell and page, never a crash, and a whole store built
 // with `frontier-build --codec meshopt` holds the same geometry and renders the same ids as the
 // Draco store of the same model. The properties meshopt shares with Draco (shared seam
 // vertices, lattice-degenerate triangles dropped, empty and single-triangle cells, normals) are
 // the CellCodecOnLattice tests of test_cell_codec.cpp, which run both codecs.
-#include "src/paging/cell_codec.h"
-#include "src/paging/cell_tree.h"
+#include "src/codec/cell_codec.h"
+#include "src/codec/cell_tree.h"
 #include "src/paging/store_model.h"
 #include "store/store_file.h"
 #include "tests/cell_codec_util.h"

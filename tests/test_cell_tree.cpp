@@ -1,13 +1,13 @@
-// In-cell trees (src/paging/cell_tree.h): a store's cell pages carry the k-d tree frontier-view
+// In-cell trees (src/codec/cell_tree.h): a store's cell pages carry the k-d tree frontier-view
 // builds when it pages a cell in. Loading it must give exactly the tree KdTree::build gives on
 // the decoded cell — node for node, cell for cell, reference for reference — for terrain,
 // building and curved-primitive cells under every codec; stores without trees, and viewers
 // with other refine options, build as before and render the same ids; damaged trees are
 // Corruption naming the page, never a crash.
 #include "preprocess/build.h"
-#include "src/paging/cell_tree.h"
+#include "src/codec/cell_tree.h"
 #include "src/paging/store_model.h"
-#include "src/paging/walkthrough.h"
+#include "src/walk/walkthrough.h"
 #include "src/io/camera_path.h"
 #include "tests/process_util.h"
 #include "tests/test_files.h"

@@ -7,7 +7,7 @@
 // what the cut drew.
 #include "src/io/camera_path.h"
 #include "src/io/load_scene.h"
-#include "src/paging/walkthrough.h"
+#include "src/walk/walkthrough.h"
 #include "tests/engine_util.h"
 #include "tests/process_util.h"
 #include "tests/test_files.h"

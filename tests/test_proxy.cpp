@@ -1,13 +1,13 @@
-// Proxies (src/paging/proxy.h) and the store's `proxies` section: every interior node of a built
+// Proxies (src/lod/proxy.h) and the store's `proxies` section: every interior node of a built
 // terrain and building has a proxy page; the stored bound holds against the subtree's original
 // geometry (brute-force point-triangle distances, both ways); bounds grow towards the root; proxy
 // sizes stay within the target; degenerate, coplanar, sphere-only and far-from-origin input; and
 // damaged proxy pages are reported naming the node and the page.
 #include "preprocess/build.h"
 #include "src/core/tessellate.h"
-#include "src/paging/proxy.h"
-#include "src/paging/proxy_distance.h"
-#include "src/paging/proxy_shell.h"
+#include "src/lod/proxy.h"
+#include "src/lod/proxy_distance.h"
+#include "src/lod/proxy_shell.h"
 #include "src/paging/store_model.h"
 #include "store/page_file.h"
 #include "store/store_file.h"

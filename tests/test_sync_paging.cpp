@@ -6,7 +6,7 @@
 #include "src/engine/ray_walk.h"
 #include "src/io/camera_path.h"
 #include "src/io/load_scene.h"
-#include "src/paging/walkthrough.h"
+#include "src/walk/walkthrough.h"
 #include "tests/engine_util.h"
 #include "tests/process_util.h"
 #include "tests/test_files.h"

@@ -15,7 +15,7 @@
 #include "src/paging/store_model.h"
 #include "src/core/tessellate.h"
 #include "src/raster/visibility.h"
-#include "src/paging/walkthrough.h"
+#include "src/walk/walkthrough.h"
 #include "tests/engine_util.h"
 #include "tests/process_util.h"
 #include "tests/test_files.h"

@@ -2,7 +2,7 @@
 // build, distances against the analytic answer, resolve() against walls, the section format
 // against damage, and the query counter.
 #include "preprocess/walkable_grid.h"
-#include "src/paging/collision_grid.h"
+#include "src/walk/collision_grid.h"
 #include "store/page_format.h"
 
 #include <gtest/gtest.h>

@@ -1,10 +1,10 @@
-// Walk mode (src/paging/walker.h) against small scenes with known answers: walls stop the eye at its
+// Walk mode (src/walk/walker.h) against small scenes with known answers: walls stop the eye at its
 // radius and let it slide, floors catch it after a fall at eye height, low steps are climbed
 // and high ones block, a flat walk keeps its height exactly, and the counters count.
 // Scenes are metre-scale, z up, built into 5 cm grids in memory (a few tenths of a second each).
 #include "preprocess/walkable_grid.h"
-#include "src/paging/collision_grid.h"
-#include "src/paging/walker.h"
+#include "src/walk/collision_grid.h"
+#include "src/walk/walker.h"
 
 #include <gtest/gtest.h>
 
@@ -19,7 +19,7 @@ namespace {
 constexpr double kVoxel = 0.05;
 constexpr double kDt = 1.0 / 60.0;
 const WalkParams kParams;  // the defaults: eye 1.7, radius 0.25, step 0.35, z up
-// The grid's error bound (src/paging/collision_grid.h): 0.94 voxel.
+// The grid's error bound (src/walk/collision_grid.h): 0.94 voxel.
 constexpr double kGridError = 0.94 * kVoxel;
 // Grid values are floats: a flat floor is found to about 1e-7 of a distance of a few voxels.
 constexpr double kFloatNoise = 1e-6;

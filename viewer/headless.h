@@ -3,7 +3,7 @@
 #pragma once
 
 #include "src/core/scene.h"
-#include "src/paging/walkthrough.h"
+#include "src/walk/walkthrough.h"
 #include "viewer/options.h"
 
 namespace frontier {

@@ -31,7 +31,7 @@
 #include "src/core/progress.h"
 #include "src/io/camera_path.h"
 #include "src/paging/store_model.h"
-#include "src/paging/walkthrough.h"
+#include "src/walk/walkthrough.h"
 #include "store/page_format.h"
 #include "viewer/headless.h"
 #include "viewer/model_frame.h"

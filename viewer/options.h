@@ -5,11 +5,11 @@
 #pragma once
 
 #include "src/engine/frustum.h"
-#include "src/paging/collision_grid.h"
-#include "src/paging/walkthrough.h"
 #include "src/raster/bsp.h"
 #include "src/raster/gouraud.h"
 #include "src/raster/imr.h"
+#include "src/walk/collision_grid.h"
+#include "src/walk/walkthrough.h"
 
 #include <CLI/CLI.hpp>
 

@@ -3,9 +3,9 @@
 // frontier-build --walkable carry the grid.
 #pragma once
 
-#include "src/paging/collision_grid.h"
 #include "src/paging/store_model.h"
-#include "src/paging/walker.h"
+#include "src/walk/collision_grid.h"
+#include "src/walk/walker.h"
 #include "viewer/options.h"
 
 #include <memory>

@@ -1,9 +1,9 @@
 // The interactive window of frontier-view (GLFW): a walkthrough of a store, rendered by the
-// out-of-core frustum caster (src/paging/walkthrough.h) and shown as a texture, with a HUD.
+// out-of-core frustum caster (src/walk/walkthrough.h) and shown as a texture, with a HUD.
 #pragma once
 
 #include "src/core/scene.h"
-#include "src/paging/walkthrough.h"
+#include "src/walk/walkthrough.h"
 
 #include <functional>
 #include <string>
@@ -11,7 +11,7 @@
 
 namespace frontier {
 
-class Walker;  // src/paging/walker.h (walk mode), may be null
+class Walker;  // src/walk/walker.h (walk mode), may be null
 
 struct WindowOptions {
   Camera start;                       // initial camera

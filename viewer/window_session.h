@@ -5,7 +5,7 @@
 // image). Everything here runs on the thread that owns the GL context.
 #pragma once
 
-#include "src/paging/walker.h"
+#include "src/walk/walker.h"
 #include "viewer/hud.h"
 #include "viewer/window.h"
 #include "viewer/window_rig.h"

@@ -2,7 +2,7 @@
 // detail" in paged_world.h and DESIGN.md "Level of detail: one cut per frame").
 #include "src/paging/paged_world.h"
 #include "src/paging/paged_world_internal.h"
-#include "src/paging/cell_tree.h"
+#include "src/codec/cell_tree.h"
 #include "src/core/geometry.h"
 
 #include <fmt/format.h>

@@ -3,8 +3,8 @@
 // cells; nothing is trusted before it has been checked (layouts: store/FORMAT.md).
 #include "src/paging/store_model.h"
 
+#include "src/codec/cell_tree.h"
 #include "src/core/byte_io.h"
-#include "src/paging/cell_tree.h"
 #include "store/page_file.h"
 
 #include <fmt/format.h>

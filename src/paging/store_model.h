@@ -2,7 +2,7 @@
 // counts, materials, lights, camera), `tree` (the top k-d tree's nodes) and `cells` (one record
 // per top cell: bounds, content bounds, reference count, page), the optional `portals` (the
 // building's cells-and-portals graph, src/raster/portals.h), the optional `proxies` (a proxy page
-// and error bound per interior node, src/paging/proxy_section.h) — and the decoding of a cell's or
+// and error bound per interior node, src/lod/proxy_section.h) — and the decoding of a cell's or
 // a proxy's page into primitives. Byte layouts are in store/FORMAT.md ("Model sections", "Cell pages").
 //
 // The top tree is resident; cell pages are decoded on demand (read_cell) or all at once
@@ -11,8 +11,8 @@
 // overlaps, so load_all yields one scene primitive per reference; ids (sources) are unchanged.
 #pragma once
 
-#include "src/paging/cell_codec.h"
-#include "src/paging/proxy_section.h"
+#include "src/codec/cell_codec.h"
+#include "src/lod/proxy_section.h"
 #include "src/engine/kdtree.h"
 #include "src/raster/portals.h"
 #include "src/core/scene.h"
@@ -59,7 +59,7 @@ struct StoreModelInfo {
   bool walkable = false;              // an `sdf` section exists
   double sdf_voxel = 0.0;
   double walk_radius = 0.0;           // the walker clearance the grid's band was sized for
-  // Set when cell pages carry in-cell trees (src/paging/cell_tree.h): the options they were built
+  // Set when cell pages carry in-cell trees (src/codec/cell_tree.h): the options they were built
   // with (root aside), how many pages carry one and their bytes in all.
   std::optional<KdBuildOptions> cell_tree;
   uint64_t cell_tree_pages = 0;

@@ -36,12 +36,12 @@
 #include "preprocess/build.h"
 #include "preprocess/walkable_grid.h"
 #include "src/io/load_scene.h"
-#include "src/paging/collision_grid.h"
+#include "src/walk/collision_grid.h"
 #include "src/io/camera_path.h"
 #include "src/io/image.h"
 #include "src/core/progress.h"
 #include "src/paging/store_model.h"
-#include "src/paging/walkthrough.h"
+#include "src/walk/walkthrough.h"
 
 #include <CLI/CLI.hpp>
 #include <fmt/core.h>

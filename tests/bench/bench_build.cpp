@@ -10,10 +10,10 @@
 // building its tree as frontier-view did before proxy pages carried trees, and loading the
 // stored tree (checked equal). Prints Markdown.
 #include "preprocess/build.h"
+#include "src/codec/cell_tree.h"
 #include "src/core/progress.h"
-#include "src/paging/cell_tree.h"
 #include "src/paging/store_model.h"
-#include "src/paging/walkthrough.h"
+#include "src/walk/walkthrough.h"
 
 #include <CLI/CLI.hpp>
 #include <fmt/core.h>

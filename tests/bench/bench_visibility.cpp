@@ -19,7 +19,7 @@
 #include "src/core/progress.h"
 #include "src/paging/store_model.h"
 #include "src/raster/visibility.h"
-#include "src/paging/walkthrough.h"
+#include "src/walk/walkthrough.h"
 
 #include <CLI/CLI.hpp>
 #include <fmt/core.h>

@@ -1,4 +1,4 @@
-// libFuzzer target for the cell page decoders (src/paging/cell_codec.h): the first input byte picks
+// libFuzzer target for the cell page decoders (src/codec/cell_codec.h): the first input byte picks
 // the codec (its value mod 3: raw, Draco, meshopt), the rest is the page payload, decoded against a fixed
 // 16-bit lattice. Any crash, leak, sanitizer report, hang or out-of-memory is a finding; a
 // Corruption status is the expected outcome for garbage. A scene that decodes must be usable:
@@ -7,7 +7,7 @@
 // With FRONTIER_FUZZ_SEEDS=DIR in the environment, start-up first writes valid pages of every
 // codec into DIR (tests/fuzz/run.sh passes the corpus directory), so that mutation starts
 // from real Draco and meshoptimizer streams rather than having to discover them.
-#include "src/paging/cell_codec.h"
+#include "src/codec/cell_codec.h"
 
 #include <cmath>
 #include <cstdint>
