@@ -1,4 +1,4 @@
-// PagedWorld's private records, shared by paged_world.cpp and paged_world_stand_in.cpp.
+// PagedWorld's private records, shared by paged_world.cpp, paged_world_cut.cpp and paged_world_decoder.cpp.
 #pragma once
 
 #include "src/paging/paged_world.h"
