@@ -23,6 +23,7 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <climits>
 #include <cmath>
@@ -204,6 +205,16 @@ TreePage with_cell_tree(const EncodedCell& e, const Aabb& region, KdBuildOptions
   page.tree_bytes = tree->size();
   return page;
 }
+
+// A node's proxy is simplified from its descendants this many levels down (leaves above that
+// stand for themselves), merged: simplifying the children's proxies instead compounds the error
+// level by level (and widens the slits between them into holes), so that a 20 M terrain's root
+// proxy lay 215 from the original on a height range of 82. The memory is a few proxies per node
+// of the path being built.
+constexpr size_t kProxyInputLevels = 3;
+// A subtree's meshes by level below its root: [0] the root's (its proxy, or a leaf's input),
+// [j] those j levels below (a leaf shallower than that standing for itself), shared, not copied.
+using MeshLevels = std::array<std::vector<std::shared_ptr<const ProxyMesh>>, kProxyInputLevels>;
 
 // A proxy page made on a worker thread, written by the builder's thread afterwards.
 struct PendingProxyPage {
@@ -873,7 +884,7 @@ class StoreBuilder {
     std::vector<PendingProxyPage> pages(tree.nodes().size());
     std::vector<BoundNode> bounds(tree.nodes().size());
     const CellCodecOptions codec = codec_options();
-    ProxyMesh root;
+    MeshLevels root;
     arena_->execute([&] { root = part_proxy(scene, tree, 0, tree.bounds(), pages, bounds, codec); });
     for (size_t i = 0; i < pages.size(); ++i) {
       if (Status s = write_proxy(node_base + static_cast<uint32_t>(i), pages[i]); !s) return s;
@@ -883,9 +894,10 @@ class StoreBuilder {
     return Status::ok();
   }
 
-  // The mesh standing for local node `node` of a part's tree: a leaf's input, or an interior
-  // node's proxy (whose page goes to pages[node]); bounds[node] is its place in the hierarchy.
-  ProxyMesh part_proxy(const Scene& scene, const KdTree& tree, uint32_t node, const Aabb& region,
+  // The meshes of local node `node` of a part's tree by level (MeshLevels): a leaf's input, or
+  // an interior node's proxy (whose page goes to pages[node]) and its descendants'; bounds[node]
+  // is its place in the hierarchy.
+  MeshLevels part_proxy(const Scene& scene, const KdTree& tree, uint32_t node, const Aabb& region,
                        std::vector<PendingProxyPage>& pages, std::vector<BoundNode>& bounds,
                        const CellCodecOptions& codec) const {
     const KdTree::Node& n = tree.nodes()[node];
@@ -900,26 +912,41 @@ class StoreBuilder {
       b.indices = mesh.indices;
       for (const Vec3& p : b.positions) b.box.extend(p);
       b.original = true;
-      return mesh;
+      return leaf_levels(std::move(mesh));
     }
     Aabb lower_region = region, upper_region = region;
     lower_region.hi[n.axis_or_leaf] = n.split;
     upper_region.lo[n.axis_or_leaf] = n.split;
-    ProxyMesh lower, upper;
+    MeshLevels lower, upper;
     tbb::parallel_invoke([&] { lower = part_proxy(scene, tree, node + 1, lower_region, pages, bounds, codec); },
                          [&] { upper = part_proxy(scene, tree, n.child, upper_region, pages, bounds, codec); });
-    return make_proxy(lower, upper, region, pages[node], codec, bounds, node, node + 1, n.child);
+    return make_proxy(std::move(lower), std::move(upper), region, pages[node], codec, bounds, node, node + 1, n.child);
   }
 
-  // Merges two children's meshes into their parent's proxy, encoded into `out`; its bound is
-  // measured through `bounds` (the children at lower_index and upper_index, complete) and the
-  // proxy takes its place there at `index`.
-  ProxyMesh make_proxy(ProxyMesh& lower, ProxyMesh& upper, const Aabb& region, PendingProxyPage& out,
-                       const CellCodecOptions& codec, std::vector<BoundNode>& bounds, uint32_t index,
-                       uint32_t lower_index, uint32_t upper_index) const {
-    ProxyMesh merged = merge_proxies(lower, upper);
-    lower = ProxyMesh{};
-    upper = ProxyMesh{};
+  // A leaf's mesh at every level (it stands for itself however deep its siblings go).
+  static MeshLevels leaf_levels(ProxyMesh mesh) {
+    const auto shared = std::make_shared<const ProxyMesh>(std::move(mesh));
+    MeshLevels levels;
+    for (auto& l : levels) l = {shared};
+    return levels;
+  }
+
+  // The parent's proxy, encoded into `out`, from its children's MeshLevels: simplified from the
+  // descendants kProxyInputLevels levels down (merged), not from the children's proxies, so that
+  // simplification error does not compound level by level; its bound is measured through `bounds`
+  // (the children at lower_index and upper_index, complete) and the proxy takes its place there
+  // at `index`. Returns the parent's MeshLevels.
+  MeshLevels make_proxy(MeshLevels lower, MeshLevels upper, const Aabb& region, PendingProxyPage& out,
+                        const CellCodecOptions& codec, std::vector<BoundNode>& bounds, uint32_t index,
+                        uint32_t lower_index, uint32_t upper_index) const {
+    std::vector<const ProxyMesh*> input;
+    for (const MeshLevels* side : {&lower, &upper}) {
+      for (const auto& m : (*side)[kProxyInputLevels - 1]) input.push_back(m.get());
+    }
+    ProxyMesh merged = merge_proxies(input);
+    // Monotone: a parent's bound is at least its children's (the descendants' may be smaller).
+    const double children_error = std::max(lower[0].front()->error, upper[0].front()->error);
+    merged.error = std::max(merged.error, children_error);
     const uint32_t children[2] = {lower_index, upper_index};
     const ProxyMeasure measure = [&](const ProxyMesh& candidate) {
       return measure_against_original(candidate.positions, candidate.indices, bounds, children);
@@ -927,6 +954,7 @@ class StoreBuilder {
     ProxySimplifyStats stats;
     ProxyMesh proxy = simplify_proxy(merged, proxy_options_, &stats, &region, &measure);
     merged = ProxyMesh{};
+    proxy.error = std::max(proxy.error, children_error);
     out.shell = stats.shell;
     out.sloppy = stats.sloppy;
     out.record.error = proxy.error;
@@ -942,11 +970,16 @@ class StoreBuilder {
     b.upper = upper_index;
     b.box = l.box;
     b.box.extend(u.box);
-    if (stats.kept_input) {  // the children's meshes themselves: their bounds hold for it
+    if (stats.kept_input && kProxyInputLevels == 1) {  // the children's meshes: their bounds hold for it
       b.original = l.original && u.original;
       b.to_original = std::max(l.to_original, u.to_original);
       b.from_proxy = std::max(l.from_proxy, u.from_proxy);
       if (!b.original) b.triangle_error.assign(proxy.triangle_count(), b.from_proxy);
+    } else if (stats.kept_input) {  // the descendants' meshes: measured as they are
+      MeasuredBound m = measure(proxy);
+      b.to_original = m.to_original;
+      b.from_proxy = m.from_proxy;
+      b.triangle_error = std::move(m.triangle_error);
     } else {
       b.to_original = stats.bound.to_original;
       b.from_proxy = stats.bound.from_proxy;
@@ -955,7 +988,13 @@ class StoreBuilder {
     b.positions = proxy.positions;
     b.indices = proxy.indices;
     bounds[index] = std::move(b);
-    return proxy;
+    MeshLevels levels;
+    levels[0] = {std::make_shared<const ProxyMesh>(std::move(proxy))};
+    for (size_t j = 1; j < levels.size(); ++j) {
+      levels[j] = std::move(lower[j - 1]);
+      levels[j].insert(levels[j].end(), upper[j - 1].begin(), upper[j - 1].end());
+    }
+    return levels;
   }
 
   // A proxy page's tree, as with_cell_tree makes a cell's: built with the viewer's proxy
@@ -1024,12 +1063,13 @@ class StoreBuilder {
     const auto upper_index = static_cast<uint32_t>(bounds.size());
     append_bounds(bounds, std::move(upper.bounds));
     PendingProxyPage page;
-    ProxyMesh proxy;
+    MeshLevels levels;
     arena_->execute([&] {
-      proxy = make_proxy(lower.mesh, upper.mesh, region, page, codec_options(), bounds, 0, lower_index, upper_index);
+      levels = make_proxy(std::move(lower.levels), std::move(upper.levels), region, page, codec_options(), bounds, 0,
+                          lower_index, upper_index);
     });
     if (Status s = write_proxy(node, page); !s) return s;
-    pending_.push_back({std::move(proxy), bound_summary(bounds, 0, kBoundLevels)});
+    pending_.push_back({std::move(levels), bound_summary(bounds, 0, kBoundLevels)});
     report_.proxy_seconds += seconds_since(t);
     return Status::ok();
   }
@@ -1119,7 +1159,7 @@ class StoreBuilder {
   std::vector<StoreProxy> proxies_;  // per node of nodes_ (grown as proxies are written)
   // A finished subtree whose parent is not done yet: its mesh and the top of its hierarchy.
   struct PendingSubtree {
-    ProxyMesh mesh;
+    MeshLevels levels;  // the subtree root's proxy and its descendants' (make_proxy)
     std::vector<BoundNode> bounds;
   };
   std::vector<PendingSubtree> pending_;

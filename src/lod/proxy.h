@@ -7,8 +7,11 @@
 // The builder makes them bottom-up:
 //   leaf   proxy_input(cell): the cell's triangles, curved primitives tessellated (for proxies
 //          only) with their measured chord error as the bound, snapped to the store's lattice.
-//   node   merge_proxies(lower, upper): both children's meshes welded, exact duplicate triangles
-//          (a primitive straddling cells is stored in each) dropped; the bound is the larger one.
+//   node   merge_proxies(meshes): the node's descendants three levels down (leaves above that
+//          standing for themselves; the builder's kProxyInputLevels) welded, exact duplicate
+//          triangles (a primitive straddling cells is stored in each) dropped; the bound is the
+//          largest, and at least the children's. (From the children's proxies instead, the error
+//          compounded level by level and slits between them widened into holes.)
 //          simplify_proxy(merged): meshoptimizer's simplifier with locked borders (so sibling
 //          proxies meet), unlocked when the border alone keeps it above six times the target (no
 //          hole; the border may move within the bound). Where even that stays above twelve times
@@ -34,8 +37,10 @@
 // parts measure through); the proxy's side is sampled at its vertices, edge midpoints and
 // centroids (its few large triangles would need splitting to the bound's size to be bounded
 // everywhere). Candidates are compared by that bound: a shell replaces the simplifier's result
-// when it is the smaller, and where the result's bound exceeds both twice its input's and three
-// shell voxels, the unlocked and sloppy simplifiers are measured too and the smallest kept.
+// when it is the smaller, and where the result's bound exceeds both 1.3 times its input's and
+// three shell voxels, the unlocked and sloppy simplifiers, clustering to four times the target
+// then simplifying (which welds the slits between the merged meshes), and a shell are measured
+// too and the smallest kept.
 // Without a ProxyMeasure (tests of simplify_proxy alone) a node's bound is relative to its input:
 // max(meshoptimizer's estimate, the measured distance to the input) + the input's bound; a
 // shell's estimate is its offset (a voxel and half a voxel's diagonal) plus meshoptimizer's.
@@ -50,6 +55,7 @@
 #include <cstdint>
 #include <functional>
 #include <optional>
+#include <span>
 #include <vector>
 
 namespace frontier {
@@ -107,6 +113,8 @@ ProxyMesh proxy_input(const Scene& cell, const ProxyOptions& options);
 // Both meshes in one, welded by exact position; a triangle that appears in both (same corners,
 // same orientation) is kept once. error = max of both; subtree_triangles = sum less duplicates.
 ProxyMesh merge_proxies(const ProxyMesh& lower, const ProxyMesh& upper);
+// The same for any number of meshes (a node's descendants some levels down).
+ProxyMesh merge_proxies(std::span<const ProxyMesh* const> meshes);
 
 // The proxy of `input`: a copy when it has at most options.target_triangles triangles (same
 // error), else simplified (at most twice the target unless even sloppy clustering cannot get
