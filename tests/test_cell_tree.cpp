@@ -314,8 +314,9 @@ TEST(StoreCellTree, DamagedTreesAreCorruptionNamingThePage) {
 // Proxy pages carry their trees too: loading one gives exactly the viewer's build of the proxy
 // over its node's region (proxy_tree_options), above and inside the parts of a store split on
 // disk, under every codec; a store without trees has none, and a damaged proxy tree is
-// Corruption naming the node and page.
-TEST(StoreCellTree, ProxyPagesCarryTheViewersProxyTrees) {
+// Corruption naming the node and page. (Six builds: its own suite name keeps it out of the
+// sanitized subset; the walkthrough tests there load proxy trees.)
+TEST(ProxyTrees, ProxyPagesCarryTheViewersProxyTrees) {
   const std::string input = generated("terrain", 20000);
   for (const CellCodec codec : {CellCodec::Raw, CellCodec::Draco, CellCodec::Meshopt}) {
     for (const bool trees : {true, false}) {
