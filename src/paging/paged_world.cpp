@@ -296,7 +296,7 @@ bool PagedWorld::sync_impl(std::chrono::steady_clock::time_point deadline, bool 
   // stand-in, or the reconstruction, covers what is not in yet).
   // A pegged cut's frames decode here, in the paging share before the rays (the decoder thread
   // pauses: it would take a core from the rays).
-  const std::vector<uint32_t> ready = take_ready(!budgeted_ || cut_ == CutKind::kPegged || decoder_blocked());
+  const std::vector<uint32_t> ready = take_ready(frame_decodes() || decoder_blocked());
   const size_t batch = std::max<size_t>(4, 2 * static_cast<size_t>(tbb::info::default_concurrency()));
   for (size_t b = 0; b < ready.size(); b += batch) {
     if (pass.full || std::chrono::steady_clock::now() >= deadline) {

@@ -289,6 +289,9 @@ class PagedWorld final : public CellGate {
   // page carries none built with proxy_build_options (any thread: reads the model only).
   // False when the page left the cache meanwhile.
   bool decode_proxy(uint32_t node, ProxyDecoded& out) const;
+  // Whether the frame's threads decode what arrived (in sync, within its deadline): in frames
+  // that wait for their pages, and before a pegged cut's rays (its decoder thread pauses).
+  bool frame_decodes() const;
   // Takes up to `count` ready cells off wanted_, those to decode first.
   std::vector<uint32_t> pick_ready(const Vec3& eye, bool has_eye, size_t count);
   static constexpr size_t kDecodeBatch = 4;

@@ -182,7 +182,7 @@ bool PagedWorld::load_proxies(std::chrono::steady_clock::time_point deadline) {
   // In frames that wait for their pages, and before a pegged cut's rays, the frame's threads
   // decode those that arrived, in parallel, in the order asked (largest error first), until the
   // deadline (a batch at least).
-  if (!budgeted_ || cut_ == CutKind::kPegged) {
+  if (frame_decodes()) {
     const std::vector<uint32_t> arrived = pick_ready_proxies(SIZE_MAX);
     const size_t batch = std::max<size_t>(4, 2 * static_cast<size_t>(tbb::info::default_concurrency()));
     size_t k = 0;
@@ -312,6 +312,8 @@ void PagedWorld::drop_proxy(uint32_t node) {
   }
   slot = ProxySlot();
 }
+
+bool PagedWorld::frame_decodes() const { return !budgeted_ || cut_ == CutKind::kPegged; }
 
 bool PagedWorld::drawable(uint32_t node) const {
   const auto& nodes = model_.nodes();

@@ -29,6 +29,10 @@ bool same_camera(const Camera& a, const Camera& b) {
 }
 
 double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
+// `ms` milliseconds as a clock duration (deadlines are time points plus these).
+Clock::duration ms_duration(double ms) {
+  return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double, std::milli>(ms));
+}
 
 }  // namespace
 
@@ -154,7 +158,7 @@ void Walkthrough::start_image(bool shadows, double pixel_error) {
   world_->set_detail(view_, pixel_error, pegged);
   if (pegged && pixel_error > 0.0 && world_->has_proxies()) {
     const double share = budget.ms > 0.0 ? kPageInShare * budget.ms : 8.0;
-    world_->sync(Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double, std::milli>(share)));
+    world_->sync(Clock::now() + ms_duration(share));
   }
   world_->begin_frame(marks_);
   image_shadows_ = shadows;
@@ -344,7 +348,7 @@ bool Walkthrough::choose_image(const Camera& camera, bool still, bool deferred_n
 Walkthrough::FramePlan Walkthrough::plan_frame(Clock::time_point start, bool still) const {
   const FrameBudget& budget = options_.budget;
   const auto after = [&](double ms) {
-    return start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double, std::milli>(ms));
+    return start + ms_duration(ms);
   };
   FramePlan plan;
   plan.start = start;
@@ -396,9 +400,7 @@ double Walkthrough::render_image(FramePlan& plan, Counters& counters) {
 
 Clock::time_point Walkthrough::page_in_slice(const FramePlan& plan) const {
   if (plan.wait_for_all || options_.budget.ms <= 0.0) return plan.deadline;
-  const auto share = std::chrono::duration_cast<Clock::duration>(
-      std::chrono::duration<double, std::milli>(kPageInShare * options_.budget.ms));
-  return std::min(plan.deadline, Clock::now() + share);
+  return std::min(plan.deadline, Clock::now() + ms_duration(kPageInShare * options_.budget.ms));
 }
 
 bool Walkthrough::next_pass(bool finish) {
@@ -447,11 +449,8 @@ bool Walkthrough::out_of_time(FramePlan& plan) const {
   // kFloorMaxOvertime frame times past the pegged end, and never less than that from now: a
   // frame whose start was held up (paging, a descheduled thread) still gets its floor's time
   // instead of ending with no sample (a black frame).
-  const auto ms = [](double x) {
-    return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double, std::milli>(x));
-  };
-  plan.deadline = std::max(plan.start + ms((1.0 + kFloorMaxOvertime) * options_.budget.ms),
-                           Clock::now() + ms(kFloorMaxOvertime * options_.budget.ms));
+  plan.deadline = std::max(plan.start + ms_duration((1.0 + kFloorMaxOvertime) * options_.budget.ms),
+                           Clock::now() + ms_duration(kFloorMaxOvertime * options_.budget.ms));
   return false;
 }
 
