@@ -970,12 +970,7 @@ class StoreBuilder {
     b.upper = upper_index;
     b.box = l.box;
     b.box.extend(u.box);
-    if (stats.kept_input && kProxyInputLevels == 1) {  // the children's meshes: their bounds hold for it
-      b.original = l.original && u.original;
-      b.to_original = std::max(l.to_original, u.to_original);
-      b.from_proxy = std::max(l.from_proxy, u.from_proxy);
-      if (!b.original) b.triangle_error.assign(proxy.triangle_count(), b.from_proxy);
-    } else if (stats.kept_input) {  // the descendants' meshes: measured as they are
+    if (stats.kept_input) {  // the descendants' meshes: measured as they are
       MeasuredBound m = measure(proxy);
       b.to_original = m.to_original;
       b.from_proxy = m.from_proxy;
