@@ -53,6 +53,13 @@ class SampleBuffer {
     t_[i] = t;
     color_[i] = color;
   }
+  // set(i, kNoPrim, kInfinity, bg), writing nothing where the pixel already holds exactly that
+  // (the sky of a walk stays sky from frame to frame: reads cost a frame less than writes).
+  void set_background(size_t i, Rgb bg) {
+    const Rgb& c = color_[i];
+    if (prim_[i] == kNoPrim && c.r == bg.r && c.g == bg.g && c.b == bg.b && t_[i] == kInfinity) return;
+    set(i, kNoPrim, kInfinity, bg);
+  }
 
   // Values of confirmed pixels.
   uint32_t prim(size_t i) const { return prim_[i]; }

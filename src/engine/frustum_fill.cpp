@@ -31,16 +31,23 @@ constexpr uint32_t kPlaneFillCandidates = 3;
 // miss or leave the root, or look-ahead found nothing ahead).
 void FrustumCaster::fill_background(const Job& job, Worker& w) {
   const Rgb bg = shader_.background();
+  const size_t W = static_cast<size_t>(view_.width);
+  uint64_t n = 0;
   for (int y = job.y0; y <= job.y1; ++y) {
+    // Only the job's edge pixels can be shared with a neighbouring job (claim()).
+    const bool edge_row = y == job.y0 || y == job.y1;
+    const size_t row = static_cast<size_t>(y) * W;
     for (int x = job.x0; x <= job.x1; ++x) {
-      const size_t i = static_cast<size_t>(y) * static_cast<size_t>(view_.width) + static_cast<size_t>(x);
-      if (!claim(job, x, y, i)) continue;
-      buffer_->set(i, kNoPrim, kInfinity, bg);
-      ++w.counters.samples;
-      ++w.counters.rays;
-      if (count_samples_) samples_done_.fetch_add(1, std::memory_order_relaxed);
+      const size_t i = row + static_cast<size_t>(x);
+      const bool interior = !edge_row && x > job.x0 && x < job.x1;
+      if (!(interior ? buffer_->claim_exclusive(i) : buffer_->claim(i))) continue;
+      buffer_->set_background(i, bg);
+      ++n;
     }
   }
+  w.counters.samples += n;
+  w.counters.rays += n;
+  if (count_samples_ && n > 0) samples_done_.fetch_add(n, std::memory_order_relaxed);
 }
 
 // Corner rays against the impinging elements (a corner hit inside this cell is final), then
