@@ -298,6 +298,10 @@ void add_path_command(CLI::App& app, PathCommand& p) {
   p.cmd->add_option("--frames", p.options.frames, "number of frames")->required()->check(CLI::Range(1, 100000000));
   p.cmd->add_option("--seed", p.options.seed, "random seed");
   p.cmd->add_option("--step", p.options.step, "walk: metres per frame")->check(frontier::option_checks::between(1e-4, 100.0));
+  p.cmd->add_option("--speed", p.options.speed,
+                    "orbit, fly: metres the eye moves per frame, going round again as often as --frames needs "
+                    "(default: one loop spread over --frames, however many)")
+      ->check(frontier::option_checks::between(1e-9, 1e12));
   p.cmd->add_option("--vfov", p.options.vfov_deg, "vertical field of view, degrees")->check(frontier::option_checks::between(1.0, 170.0));
   p.cmd->add_option("--clearance", p.options.clearance,
                     "fly: metres kept between the eye and the highest geometry within that distance of it "

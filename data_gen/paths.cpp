@@ -360,8 +360,11 @@ Result<std::vector<Camera>> orbit_path(const Aabb& b, const PathOptions& o) {
   const double el = 25.0 * std::numbers::pi / 180.0;
   const Vec3 c = b.center();
   std::vector<Camera> frames;
+  // Radians per frame: one loop over the frames, or the eye's speed along its circle.
+  const double horizontal = dist * std::cos(el);
+  const double turn = o.speed > 0.0 ? o.speed / horizontal : 2 * std::numbers::pi / o.frames;
   for (int i = 0; i < o.frames; ++i) {
-    const double a = phase + 2 * std::numbers::pi * i / o.frames;
+    const double a = phase + turn * i;
     const Vec3 eye = c + dist * Vec3(std::cos(el) * std::cos(a), std::cos(el) * std::sin(a), std::sin(el));
     frames.push_back(make_camera(eye, c, o.vfov_deg));
   }
@@ -433,7 +436,7 @@ Result<std::vector<Camera>> fly_path(const Aabb& b, const GroundMap& ground, con
   };
   std::vector<Camera> frames;
   for (int i = 0; i < o.frames; ++i) {
-    const double along = C * i / o.frames;
+    const double along = o.speed > 0.0 ? o.speed * i : C * i / o.frames;
     frames.push_back(make_camera(at_length(along), at_length(along + 0.02 * C), o.vfov_deg));
   }
   return frames;

@@ -57,6 +57,9 @@ struct PathOptions {
   double step = 0.05;   // walk: metres per frame
   double vfov_deg = 60.0;
   double clearance = 0.0;  // fly: metres above the ground; 0: default_clearance(bounds)
+  // orbit, fly: metres the eye moves per frame (along the orbit's circle, along the fly's loop,
+  // going round again as often as the frames need); 0: one loop spread over the frames.
+  double speed = 0.0;
 };
 
 // The fly path's default clearance: 1% of the bounds' larger horizontal side (of the diagonal

@@ -24,6 +24,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <numbers>
 #include <numeric>
 #include <set>
 #include <sstream>
@@ -791,4 +792,58 @@ TEST(DataGenNffWriter, WritesPrimitivesAndRejectsNonFiniteValues) {
 }
 
 }  // namespace
+// --speed: the eye moves that many metres per frame (along the orbit's circle, along the fly's
+// loop) whatever --frames is, going round again when the frames outlast a loop; without it one
+// loop is spread over the frames. A bad speed fails with the option named.
+TEST_F(DataGen, OrbitAndFlyPathsKeepTheirSpeed) {
+  const Aabb b = jb(side_->at("bounds"));
+  const double speed = 0.01 * glm::length(b.extent());
+  auto path = [&](const std::string& name, std::vector<std::string> args) {
+    const std::string out = (scratch_dir() / name).string();
+    args.insert(args.begin(), {"path", "--model", ply_});
+    args.insert(args.end(), {"-o", out});
+    const auto r = run_gen(args);
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    auto cams = read_camera_path(out);
+    EXPECT_TRUE(cams.is_ok());
+    return cams.is_ok() ? *cams : std::vector<Camera>{};
+  };
+  auto precise = [](double v) {
+    std::ostringstream s;
+    s.precision(17);
+    s << v;
+    return s.str();
+  };
+  for (const std::string kind : {"orbit", "fly"}) {
+    const auto slow = path(kind + "_slow.cam", {"--kind", kind, "--frames", "40", "--seed", "3", "--speed", precise(speed)});
+    const auto loop = path(kind + "_loop.cam", {"--kind", kind, "--frames", "40", "--seed", "3"});
+    ASSERT_EQ(slow.size(), 40u);
+    ASSERT_EQ(loop.size(), 40u);
+    EXPECT_LT(glm::length(slow.front().eye - loop.front().eye), 1e-5) << kind << ": the same start";
+    double slow_total = 0.0, loop_total = 0.0;
+    for (size_t i = 1; i < slow.size(); ++i) {
+      const double step = glm::length(slow[i].eye - slow[i - 1].eye);
+      // A chord of an arc `speed` long: not longer, and on these gentle curves not much shorter.
+      EXPECT_LE(step, 1.02 * speed) << kind << " frame " << i;
+      EXPECT_GE(step, 0.8 * speed) << kind << " frame " << i;
+      slow_total += step;
+      loop_total += glm::length(loop[i].eye - loop[i - 1].eye);
+    }
+    EXPECT_LT(slow_total, 0.5 * loop_total) << kind << ": --speed did not slow the eye";
+  }
+  // Round again: an orbit at a speed that laps it in 10 frames repeats itself every 10 frames.
+  const auto one = path("orbit_one.cam", {"--kind", "orbit", "--frames", "1"});
+  ASSERT_EQ(one.size(), 1u);
+  const double horizontal = std::hypot(one[0].eye.x - b.center().x, one[0].eye.y - b.center().y);
+  ASSERT_GT(horizontal, 0.0);
+  const auto lap = path("orbit_lap.cam", {"--kind", "orbit", "--frames", "25", "--speed",
+                                           precise(2 * std::numbers::pi * horizontal / 10.0)});
+  ASSERT_EQ(lap.size(), 25u);
+  for (size_t i = 10; i < lap.size(); ++i) EXPECT_LT(glm::length(lap[i].eye - lap[i - 10].eye), 1e-4) << i;
+  const std::string out = (scratch_dir() / "bad_speed.cam").string();
+  expect_failure({"path", "--model", ply_, "--kind", "fly", "--frames", "10", "--speed", "0", "-o", out}, 2, "--speed");
+  expect_failure({"path", "--model", ply_, "--kind", "orbit", "--frames", "10", "--speed", "-1", "-o", out}, 2,
+                 "--speed");
+}
+
 }  // namespace frontier
