@@ -469,16 +469,13 @@ Status StoreModel::decode_proxy_page(uint32_t node, uint8_t codec, std::span<con
     return Status::corruption(fmt::format("{}: proxy of node {} page {}: {}", reader_->name(), node, p->page, why));
   };
   std::span<const uint8_t> tree_bytes;
-  const bool has_tree = (codec & kCellTreeFlag) != 0;
-  if (has_tree) {
-    if (!info_.cell_tree || info_.proxy_tree_cell_prims == 0) {
-      return corrupt("carries a tree but the model section records no proxy trees");
-    }
-    if (Status s = split_tree_page(payload, tree_bytes, payload); !s) return corrupt(s.message());
-    codec = static_cast<uint8_t>(codec & ~kCellTreeFlag);
+  bool has_tree = false;
+  const bool trees = info_.cell_tree && info_.proxy_tree_cell_prims != 0;
+  if (Status s = decode_page_payload(codec, payload, trees ? "" : "the model section records no proxy trees", out,
+                                     tree_bytes, has_tree);
+      !s) {
+    return corrupt(s.message());
   }
-  if (!is_cell_codec(codec)) return corrupt(fmt::format("unknown codec {}", codec));
-  if (Status s = decode_cell(payload, static_cast<CellCodec>(codec), info_.lattice, out); !s) return corrupt(s.message());
   if (out.size() != p->triangles || out.triangles.size() != out.size()) {
     return corrupt(fmt::format("{} primitives, the proxy record says {} triangles", out.size(), p->triangles));
   }
@@ -550,14 +547,12 @@ Status StoreModel::decode_page(uint32_t cell, uint8_t codec, std::span<const uin
     return Status::corruption(fmt::format("{}: cell {} page {}: {}", reader_->name(), cell, c.page, what));
   };
   std::span<const uint8_t> tree_bytes;
-  const bool has_tree = (codec & kCellTreeFlag) != 0;
-  if (has_tree) {
-    if (!info_.cell_tree) return corrupt("carries an in-cell tree but the model section records no tree options");
-    if (Status s = split_tree_page(payload, tree_bytes, payload); !s) return corrupt(s.message());
-    codec = static_cast<uint8_t>(codec & ~kCellTreeFlag);
+  bool has_tree = false;
+  if (Status s = decode_page_payload(codec, payload, info_.cell_tree ? "" : "the model section records no tree options",
+                                     out, tree_bytes, has_tree);
+      !s) {
+    return corrupt(s.message());
   }
-  if (!is_cell_codec(codec)) return corrupt(fmt::format("unknown codec {}", codec));
-  if (Status s = decode_cell(payload, static_cast<CellCodec>(codec), info_.lattice, out); !s) return corrupt(s.message());
   if (Status s = check_cell(cell, out); !s) {
     out = Scene{};
     return s;
@@ -567,6 +562,22 @@ Status StoreModel::decode_page(uint32_t cell, uint8_t codec, std::span<const uin
   if (!decoded) return corrupt(decoded.status().message());
   tree.emplace(std::move(*decoded));
   return Status::ok();
+}
+
+// What cell and proxy pages share: an in-cell tree split off the payload when the codec byte
+// says the page carries one (`no_trees`: why it may not, empty when it may), then the codec's
+// payload decoded into `out`. The caller names the page in any error.
+Status StoreModel::decode_page_payload(uint8_t codec, std::span<const uint8_t> payload, std::string_view no_trees,
+                                       Scene& out, std::span<const uint8_t>& tree_bytes, bool& has_tree) const {
+  tree_bytes = {};
+  has_tree = (codec & kCellTreeFlag) != 0;
+  if (has_tree) {
+    if (!no_trees.empty()) return Status::corruption(fmt::format("carries an in-page tree but {}", no_trees));
+    if (Status s = split_tree_page(payload, tree_bytes, payload); !s) return s;
+    codec = static_cast<uint8_t>(codec & ~kCellTreeFlag);
+  }
+  if (!is_cell_codec(codec)) return Status::corruption(fmt::format("unknown codec {}", codec));
+  return decode_cell(payload, static_cast<CellCodec>(codec), info_.lattice, out);
 }
 
 Status StoreModel::check_cell(uint32_t cell, const Scene& decoded) const {

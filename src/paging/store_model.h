@@ -22,7 +22,9 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace frontier {
@@ -154,6 +156,9 @@ class StoreModel {
   Status parse();
   Status decode_page(uint32_t cell, uint8_t codec, std::span<const uint8_t> payload, Scene& out,
                      const KdBuildOptions* options, std::optional<KdTree>& tree) const;
+  // What cell and proxy pages share (see store_model.cpp).
+  Status decode_page_payload(uint8_t codec, std::span<const uint8_t> payload, std::string_view no_trees, Scene& out,
+                             std::span<const uint8_t>& tree_bytes, bool& has_tree) const;
 
   std::unique_ptr<store::StoreReader> reader_;
   StoreModelInfo info_;
