@@ -485,14 +485,6 @@ void FrustumCaster::order_level(std::vector<Job>& level, bool budgeted) {
   level.swap(ordered);
 }
 
-// A pixel strictly inside a job's rectangle belongs to that job alone (live jobs are never
-// nested and overlap only on the edges they share with siblings), so it is claimed without an
-// atomic read-modify-write, which costs much of a frame where one element fills the view.
-bool FrustumCaster::claim(const Job& job, int x, int y, size_t i) const {
-  const bool interior = x > job.x0 && x < job.x1 && y > job.y0 && y < job.y1;
-  return interior ? buffer_->claim_exclusive(i) : buffer_->claim(i);
-}
-
 // Writes pixel (x, y)'s hit (kNoPrim: background) and its shade, at most once per frame.
 // In a paged scene the shadow rays of a hit may cross missing cells: then the pixel is shaded
 // before it is claimed, and reopened instead of written when its colour is not final.

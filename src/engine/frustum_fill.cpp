@@ -34,13 +34,10 @@ void FrustumCaster::fill_background(const Job& job, Worker& w) {
   const size_t W = static_cast<size_t>(view_.width);
   uint64_t n = 0;
   for (int y = job.y0; y <= job.y1; ++y) {
-    // Only the job's edge pixels can be shared with a neighbouring job (claim()).
-    const bool edge_row = y == job.y0 || y == job.y1;
     const size_t row = static_cast<size_t>(y) * W;
     for (int x = job.x0; x <= job.x1; ++x) {
       const size_t i = row + static_cast<size_t>(x);
-      const bool interior = !edge_row && x > job.x0 && x < job.x1;
-      if (!(interior ? buffer_->claim_exclusive(i) : buffer_->claim(i))) continue;
+      if (!claim(job, x, y, i)) continue;
       buffer_->set_background(i, bg);
       ++n;
     }

@@ -119,6 +119,15 @@ struct FrustumCaster::Incidence {
   }
 };
 
+// A pixel strictly inside a job's rectangle belongs to that job alone (live jobs are never
+// nested and overlap only on the edges they share with siblings), so it is claimed without an
+// atomic read-modify-write, which costs much of a frame where one element fills the view.
+// Inline: fill_background calls it for every sky pixel.
+inline bool FrustumCaster::claim(const Job& job, int x, int y, size_t i) const {
+  const bool interior = x > job.x0 && x < job.x1 && y > job.y0 && y < job.y1;
+  return interior ? buffer_->claim_exclusive(i) : buffer_->claim(i);
+}
+
 struct FrustumCaster::CellCache {
   std::atomic<uint32_t> stamp{0};  // frame whose entries these are
   std::atomic<uint32_t> seen{0};   // frame in which a lone pixel walk tested the cell directly
