@@ -23,6 +23,7 @@ void expect_matches_brute(const Scene& scene, const KdTree& tree, const View& vi
   brute_reference(scene, view, ref, tie);
   // Ray walking, and frustum casting with the paper's 2×2 leaves, odd 5×5 leaves and the default.
   const std::pair<Method, int> runs[] = {{Method::RayWalk, 0},
+                                         {Method::Packet, 0},
                                          {Method::Frustum, 2},
                                          {Method::Frustum, 5},
                                          {Method::Frustum, FrustumCaster::kDefaultLeafPixels}};
@@ -48,7 +49,7 @@ Counters frustum_counters(const Scene& scene, const KdTree& tree, const View& vi
 }
 
 TEST(EngineRandom, TwoHundredScenesMatchBruteForce) {
-  RecordProperty("methods", "ray walking; frustum casting with 2x2, 5x5 and 16x16 leaves: ids against brute force");
+  RecordProperty("methods", "ray walking; packets; frustum casting with 2x2, 5x5 and 16x16 leaves: ids against brute force");
   std::mt19937_64 rng(20261122);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   size_t ties = 0, pixels = 0;
@@ -79,7 +80,7 @@ TEST(EngineRandom, TwoHundredScenesMatchBruteForce) {
 
 // The three SPD scenes with their own cameras at 129² and 257².
 TEST(EngineSpd, RingsTreeShellsMatchBruteForce) {
-  RecordProperty("methods", "ray walking; frustum casting with 2x2, 5x5 and 16x16 leaves: ids against brute force");
+  RecordProperty("methods", "ray walking; packets; frustum casting with 2x2, 5x5 and 16x16 leaves: ids against brute force");
   for (const char* name : {"rings", "tree", "shells"}) {
     Scene scene;
     const std::string path = std::string(FRONTIER_DATA_DIR) + "/spd/" + name + ".nff";
@@ -96,7 +97,7 @@ TEST(EngineSpd, RingsTreeShellsMatchBruteForce) {
 }
 
 TEST(EngineHardCases, EyeOnSplitPlanesAndCellCorners) {
-  RecordProperty("methods", "ray walking; frustum casting with 2x2, 5x5 and 16x16 leaves: ids against brute force");
+  RecordProperty("methods", "ray walking; packets; frustum casting with 2x2, 5x5 and 16x16 leaves: ids against brute force");
   std::mt19937_64 rng(7);
   Scene scene = testing::random_scene(rng, 150);
   const KdTree tree = KdTree::build(scene, {});
@@ -122,7 +123,7 @@ TEST(EngineHardCases, EyeOnSplitPlanesAndCellCorners) {
 }
 
 TEST(EngineHardCases, AxisParallelViewDirections) {
-  RecordProperty("methods", "ray walking; frustum casting with 2x2, 5x5 and 16x16 leaves: ids against brute force");
+  RecordProperty("methods", "ray walking; packets; frustum casting with 2x2, 5x5 and 16x16 leaves: ids against brute force");
   std::mt19937_64 rng(11);
   Scene scene = testing::random_scene(rng, 120);
   const KdTree tree = KdTree::build(scene, {});
@@ -139,7 +140,7 @@ TEST(EngineHardCases, AxisParallelViewDirections) {
 }
 
 TEST(EngineHardCases, WideFieldOfViewAndOneMeshPerCell) {
-  RecordProperty("methods", "ray walking; frustum casting with 2x2, 5x5 and 16x16 leaves: ids against brute force");
+  RecordProperty("methods", "ray walking; packets; frustum casting with 2x2, 5x5 and 16x16 leaves: ids against brute force");
   std::mt19937_64 rng(13);
   Scene scene = testing::random_scene(rng, 100);
   KdBuildOptions single;
@@ -158,7 +159,7 @@ TEST(EngineHardCases, WideFieldOfViewAndOneMeshPerCell) {
 
 // Cameras whose centre ray grazes a sphere and a cone (tangent to the surface).
 TEST(EngineHardCases, GrazingRaysOnSpheresAndCones) {
-  RecordProperty("methods", "ray walking; frustum casting with 2x2, 5x5 and 16x16 leaves: ids against brute force");
+  RecordProperty("methods", "ray walking; packets; frustum casting with 2x2, 5x5 and 16x16 leaves: ids against brute force");
   Scene scene;
   scene.materials.push_back({});
   scene.add_sphere({Vec3(0.0), 1.0}, 0, 0);
@@ -180,7 +181,8 @@ TEST(EngineHardCases, GrazingRaysOnSpheresAndCones) {
 }
 
 TEST(EngineHardCases, FarFromOriginRendersTheSameIds) {
-  RecordProperty("methods", "ray walking, frustum casting of the scene moved by 1e6: ids against brute force of the unmoved scene");
+  RecordProperty("methods",
+                 "ray walking, packets, frustum casting of the scene moved by 1e6: ids against brute force of the unmoved scene");
   std::mt19937_64 rng(17);
   Scene scene = testing::random_scene(rng, 120);
   Camera cam = camera_at(Vec3(0.3, -2.8, 0.4), Vec3(0.0), 50.0);
@@ -197,13 +199,48 @@ TEST(EngineHardCases, FarFromOriginRendersTheSameIds) {
   std::vector<uint32_t> ref;
   std::vector<uint8_t> tie;
   brute_reference(scene, view, ref, tie);
-  for (Method m : {Method::RayWalk, Method::Frustum}) {
+  for (Method m : {Method::RayWalk, Method::Packet, Method::Frustum}) {
     const auto far_ids = render_ids(far, far_tree, far_view, m);
     const Comparison c = compare_ids(ref, tie, far_ids, 65);
     // Translation perturbs hit distances at the 1e-10 level: allow only tie pixels to differ.
     EXPECT_EQ(c.mismatches, 0u) << method_name(m) << ": " << c.first_mismatch;
   }
   EXPECT_EQ(compare_ids(ref, tie, ids, 65).mismatches, 0u);
+}
+
+// Ray packets (src/engine/packet.h): the edge filter leaves the exact test only a fraction of the
+// lane x triangle pairs, every ray is traced by a packet or walked, and the blocks whose rays
+// disagree on a direction's sign (an axis-parallel view: the centre row and column) are walked
+// and still exact.
+TEST(EngineHardCases, PacketsFilterMostTestsAndWalkMixedSigns) {
+  RecordProperty("methods", "packets: counters, and ids against brute force with mixed-sign blocks");
+  Scene loaded;
+  ASSERT_TRUE(load_scene(std::string(FRONTIER_DATA_DIR) + "/spd/rings.nff", loaded).is_ok());
+  TessellateOptions tess;
+  tess.segments = 8;
+  const Scene scene = tessellate(loaded, tess);
+  const KdTree tree = KdTree::build(scene, {});
+  const Camera cam = scene.camera ? *scene.camera : automatic_camera(scene.bounds());
+  const View view(cam, 64, 64);
+  Renderer renderer(scene, tree, 2);
+  SampleBuffer buffer;
+  RenderOptions options;
+  options.method = Method::Packet;
+  options.shade = false;
+  const Counters c = renderer.render(view, options, buffer);
+  EXPECT_EQ(c.packet_rays + c.rays_walked, c.rays);
+  EXPECT_EQ(c.rays, 64u * 64u);
+  EXPECT_GT(c.packet_filter_tests, 0u);
+  EXPECT_LT(c.ray_primitive_tests * 3, c.packet_filter_tests);  // at least two thirds rejected
+  EXPECT_GT(c.hits, 0u);
+
+  // Looking down -z at odd size: the centre column and row of blocks mix signs in x and y.
+  const Vec3 eye = scene.bounds().center() + Vec3(0.0, 0.0, 2.0 * glm::length(scene.bounds().extent()));
+  const View down(camera_at(eye, scene.bounds().center(), 40.0), 33, 33);
+  const Counters d = renderer.render(down, options, buffer);
+  EXPECT_GT(d.rays_walked, 0u);
+  EXPECT_GT(d.packet_rays, 0u);
+  expect_matches_brute(scene, tree, down, "packets looking down -z");
 }
 
 // Walls and floors that cover whole frusta are filled without a ray per pixel (fill_plane):
@@ -341,7 +378,8 @@ TEST(EngineHardCases, ScreenRectanglesHoldEveryHitBeyondTheNearPlane) {
 
 // A closed UV sphere of triangles: no background pixel may appear inside its silhouette.
 TEST(EngineHardCases, ClosedTessellatedSphereLeaksNothing) {
-  RecordProperty("methods", "frustum casting, ray walking: no background pixel inside the silhouette, 100 directions");
+  RecordProperty("methods",
+                 "frustum casting, ray walking, packets: no background pixel inside the silhouette, 100 directions");
   Scene scene;
   scene.materials.push_back({});
   const int stacks = 24, slices = 48;
@@ -371,13 +409,14 @@ TEST(EngineHardCases, ClosedTessellatedSphereLeaksNothing) {
     const View view(cam, 65, 65);
     const auto ids = render_ids(scene, tree, view, Method::Frustum);
     const auto walk_ids = render_ids(scene, tree, view, Method::RayWalk);
+    const auto packet_ids = render_ids(scene, tree, view, Method::Packet);
     size_t leaks = 0;
     for (int y = 0; y < view.height; ++y) {
       for (int x = 0; x < view.width; ++x) {
         const Ray r = view.ray(x, y);
         const double dist = glm::length(glm::cross(r.dir, -r.origin));  // distance of the ray to the centre
         const size_t i = size_t(y) * 65 + size_t(x);
-        if (dist < inner && (ids[i] == kNoPrim || walk_ids[i] == kNoPrim)) ++leaks;
+        if (dist < inner && (ids[i] == kNoPrim || walk_ids[i] == kNoPrim || packet_ids[i] == kNoPrim)) ++leaks;
       }
     }
     ASSERT_EQ(leaks, 0u) << "direction " << k;

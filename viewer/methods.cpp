@@ -209,6 +209,8 @@ const std::vector<ViewMethod>& view_methods() {
                   "--no-shadows, --cell-prims, --min-cell-prims", make_ray_cast<Method::Brute>),
       ray_casting("raywalk", "ray casting, each ray walked through the k-d tree",
                   "--no-shadows, --cell-prims, --min-cell-prims", make_ray_cast<Method::RayWalk>),
+      ray_casting("packet", "ray casting in packets of 4x4 pixels through the k-d tree",
+                  "--no-shadows, --cell-prims, --min-cell-prims", make_ray_cast<Method::Packet>),
       ray_casting("frustum", "frustum casting through the k-d tree (the default)",
                   "--frame-ms, --samples, --leaf-pixels, --no-shadows, --cell-prims, --min-cell-prims",
                   make_ray_cast<Method::Frustum>),

@@ -22,6 +22,7 @@ constexpr Field kFields[] = {
     {"ray_primitive_tests", &Counters::ray_primitive_tests}, {"hits", &Counters::hits},
     {"shading_ops", &Counters::shading_ops},         {"specular_ops", &Counters::specular_ops},
     {"shadow_rays", &Counters::shadow_rays},         {"parks", &Counters::parks},
+    {"packet_rays", &Counters::packet_rays},         {"packet_filter_tests", &Counters::packet_filter_tests},
 };
 
 }  // namespace

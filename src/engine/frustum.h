@@ -25,8 +25,12 @@
 //   them, a triangle, take their distance from its plane as fill_plane does), and when none
 //   does, it is background. This replaces the strips of lone walks along the images of cell
 //   boundaries over floors and open sky (gather_ahead);
-// - lone pixel walks reuse the arrival cell of the pixel walked before them when a box test
-//   confirms it (NextCells), instead of descending from the rope;
+// - leaf frusta that cannot advance trace their open pixels as ray packets of 4x4 pixels
+//   (src/engine/packet.h) from where the frustum is, not one walk per pixel (beyond the paper:
+//   one descent, one read of each leaf and a filter over its triangles for 16 rays);
+// - lone pixel walks (anchors, blocks packets refuse) reuse the arrival cell of the pixel
+//   walked before them when a box test confirms it (NextCells), instead of descending from
+//   the rope;
 // - near plane; eye outside the root (§4 special case);
 // - the job queue of §5.2: levels of a breadth-first subdivision, each level interleaved across
 //   the screen, interruptible between jobs by a time or sample budget, resumable next frame
@@ -62,6 +66,8 @@
 #include <vector>
 
 namespace frontier {
+
+class PacketLayout;
 
 // When to stop working on a frame (paper §5.5: peg either frame time or sample count).
 struct FrameBudget {
@@ -160,6 +166,8 @@ class FrustumCaster {
   bool classify_planes(int x0, int x1, int y0, int y1, const Aabb& box, uint8_t planes, uint8_t& straddle) const;
   bool collect(const Job& job, Worker& w);
   void resolve_by_walking(const Job& job, Worker& w, bool from_next_cell);
+  void walk_open_pixel(const Job& job, int x, int y, const Ray& ray, double tmin, Worker& w, bool from_next_cell);
+  void resolve_by_packets(const Job& job, Worker& w, bool from_next_cell);
   template <typename Visit>
   void for_each_open_pixel(const Job& job, const Visit& visit) const;
   // Pixel rectangle covered by a reference's bounds. `bounded` is false when the bounds reach
@@ -224,6 +232,9 @@ class FrustumCaster {
   std::vector<ConeFromOrigin> cone_terms_;
   std::vector<SphereFromOrigin> sphere_terms_;
   void offer(uint32_t prim, const Ray& ray, double tmin, double tmax, RayHit& best, Counters& counters) const;
+  // Leaves laid out for ray packets (resolve_by_packets), made on the first frame of a tree
+  // that does not change (no gate); a paged tree's packets read its cells directly.
+  std::unique_ptr<PacketLayout> packet_layout_;
   std::vector<Vec3> column_normal_;  // plane of pixel column x, oriented towards larger x
   std::vector<Vec3> row_normal_;     // plane of pixel row y, oriented towards larger y
 

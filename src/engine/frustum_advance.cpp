@@ -130,7 +130,7 @@ void FrustumCaster::process(Job job, Worker& w) {
     // only a few elements (or none) lie ahead of it: then its pixels test just those.
     if (look_ahead(job, rays, tmins, w)) return;
     if (job.small(leaf_)) {
-      resolve_by_walking(job, w, true);
+      resolve_by_packets(job, w, true);
       return;
     }
     split(job, nullptr, 0, w);
@@ -155,7 +155,7 @@ FrustumCaster::Step FrustumCaster::enter_root(Job& job, const std::array<Ray, 4>
     return Step::Moved;
   }
   if (job.small(leaf_)) {
-    resolve_by_walking(job, w, false);
+    resolve_by_packets(job, w, false);
     return Step::Done;
   }
   const Aabb& root = tree_.bounds();

@@ -13,6 +13,7 @@
 #pragma once
 
 #include "src/engine/frustum.h"
+#include "src/engine/packet.h"
 
 #include <algorithm>
 #include <array>
@@ -153,6 +154,7 @@ struct FrustumCaster::Worker {
   std::vector<frustum_detail::AheadNode> nodes;        // gather_ahead's descent stack,
   std::vector<frustum_detail::AheadElement> ahead;     // the elements it found
   std::vector<int32_t> ahead_cells;                    // and the cells it read them from
+  std::unique_ptr<PacketTracer> packets;              // resolve_by_packets' tracer, made on first use
   Counters counters;
   uint16_t index = 0;  // which arenas_in_ slot its arena_out becomes
 };

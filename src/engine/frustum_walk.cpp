@@ -1,6 +1,8 @@
-// Frustum casting, lone pixel walks: the pixels of a leaf frustum that cannot advance, of a
-// frustum outside the root, of an anchor, or that a §4 fill's element misses, each walk their
-// own ray through the cells (§3.2's 2×2 case) while sharing the frame's per-cell lists.
+// Frustum casting, the pixels no frustum resolves as a whole: those of a leaf frustum that
+// cannot advance (or of a small one outside the root) go on as ray packets of 4x4 pixels
+// (resolve_by_packets); anchors, pixels a §4 fill's element misses and blocks packets refuse
+// each walk their own ray through the cells (§3.2's 2×2 case) while sharing the frame's
+// per-cell lists.
 //
 // Invariants: a walk starts in a cell its ray is in (or, from_next_cell, the cell it arrives
 // in from the frustum's cell) and tests each cell's elements along the ray before moving on, so
@@ -21,21 +23,81 @@ using namespace frustum_detail;
 // with `from_next_cell`; from the root's entry when the job is outside it).
 void FrustumCaster::resolve_by_walking(const Job& job, Worker& w, bool from_next_cell) {
   for_each_open_pixel(job, [&](int x, int y, const Ray& ray, double tmin) {
-    int32_t start = job.cell;
-    if (start == KdTree::kNone) {
-      start = tree_.locate(ray.at(tmin), ray.dir);
-      if (start == KdTree::kNone) {
-        double t_enter;
-        int face;
-        start = tree_.enter_root(ray, tmin, t_enter, face);
-      }
-    } else if (from_next_cell) {
-      start = w.next_cells.arrival(tree_, job.cell, ray, tree_.exit(job.cell, ray));
-    }
-    bool parked = false;
-    const RayHit hit = walk_pixel(x, y, ray, tmin, start, w, parked);
-    if (!parked) confirm(job, x, y, hit.prim, hit.t, ray, w);
+    walk_open_pixel(job, x, y, ray, tmin, w, from_next_cell);
   });
+}
+
+// One open pixel of resolve_by_walking.
+void FrustumCaster::walk_open_pixel(const Job& job, int x, int y, const Ray& ray, double tmin, Worker& w,
+                                    bool from_next_cell) {
+  int32_t start = job.cell;
+  if (start == KdTree::kNone) {
+    start = tree_.locate(ray.at(tmin), ray.dir);
+    if (start == KdTree::kNone) {
+      double t_enter;
+      int face;
+      start = tree_.enter_root(ray, tmin, t_enter, face);
+    }
+  } else if (from_next_cell) {
+    start = w.next_cells.arrival(tree_, job.cell, ray, tree_.exit(job.cell, ray));
+  }
+  bool parked = false;
+  const RayHit hit = walk_pixel(x, y, ray, tmin, start, w, parked);
+  if (!parked) confirm(job, x, y, hit.prim, hit.t, ray, w);
+}
+
+// The open pixels of a job traced as ray packets of 4x4-pixel blocks (src/engine/packet.h)
+// instead of walked one by one. Each ray starts where its walk would: past the job's cell when
+// the frustum has resolved that cell for them (`from_next_cell`: nothing there or before it
+// within the slack, so no hit is lost by starting at the cell's exit), at the cell's entry
+// otherwise, and from the near plane outside the root. A lane stopped by a missing cell is
+// parked as a lone walk would be; a block whose rays disagree on a direction's sign, or of
+// fewer than kMinPacketRays open pixels, is walked.
+void FrustumCaster::resolve_by_packets(const Job& job, Worker& w, bool from_next_cell) {
+  constexpr int kMinPacketRays = 4;
+  if (!w.packets) w.packets = std::make_unique<PacketTracer>(scene_, tree_);
+  w.packets->bind(marks_, gate_, gate_ == nullptr ? packet_layout_.get() : nullptr);
+  const size_t W = static_cast<size_t>(view_.width);
+  for (int by = job.y0; by <= job.y1; by += 4) {
+    for (int bx = job.x0; bx <= job.x1; bx += 4) {
+      RayPacket packet;
+      int px[kPacketRays], py[kPacketRays];
+      for (int y = by; y <= std::min(by + 3, int(job.y1)); ++y) {
+        for (int x = bx; x <= std::min(bx + 3, int(job.x1)); ++x) {
+          if (buffer_->confirmed(static_cast<size_t>(y) * W + static_cast<size_t>(x))) continue;
+          const Ray ray = view_.ray(x, y);
+          double tmin = view_.tmin(ray);
+          if (job.cell != KdTree::kNone) {
+            if (from_next_cell) {
+              tmin = std::max(tmin, tree_.exit(job.cell, ray).t);
+            } else {
+              double t0, t1;
+              if (ray_box_interval(ray, tree_.cell(job.cell).bounds, t0, t1)) tmin = std::max(tmin, t0);
+            }
+          }
+          px[packet.count] = x;
+          py[packet.count] = y;
+          packet.add(ray, tmin);
+        }
+      }
+      if (packet.count == 0) continue;
+      PacketResult result;
+      if (packet.count >= kMinPacketRays && w.packets->trace(packet, result, w.counters)) {
+        for (int l = 0; l < packet.count; ++l) {
+          if (result.parked & (1u << l)) {
+            park_pixel(px[l], py[l], w);
+          } else {
+            confirm(job, px[l], py[l], result.hit[l].prim, result.hit[l].t, packet.rays[l], w);
+          }
+        }
+        continue;
+      }
+      for (int l = 0; l < packet.count; ++l) {
+        const Ray& ray = packet.rays[l];
+        walk_open_pixel(job, px[l], py[l], ray, view_.tmin(ray), w, from_next_cell);
+      }
+    }
+  }
 }
 
 // Ray walking for one pixel of a frustum (§3.2's 2×2 case). Unlike a lone ray it shares the

@@ -2,6 +2,7 @@
 // FrameRenderer interface.
 #include "src/engine/render.h"
 
+#include "src/engine/packet.h"
 #include "src/engine/ray_walk.h"
 
 #include <nlohmann/json.hpp>
@@ -20,6 +21,7 @@ const char* method_name(Method method) {
     case Method::Brute: return "brute";
     case Method::RayWalk: return "raywalk";
     case Method::Frustum: return "frustum";
+    case Method::Packet: return "packet";
   }
   return "?";
 }
@@ -52,10 +54,51 @@ Counters Renderer::render(const View& view, const RenderOptions& options, Sample
     marks_.resize(tree_.cells().size());
     marks_.begin_frame();
     tbb::enumerable_thread_specific<Counters> local;
+    // A factory, not constructor arguments: those the container would keep copies of (the scene).
+    if (options.method == Method::Packet && !layout_) layout_ = std::make_unique<PacketLayout>(scene_, tree_);
+    tbb::enumerable_thread_specific<PacketTracer> tracers(
+        [&] { return PacketTracer(scene_, tree_, &marks_, nullptr, layout_.get()); });
+    const auto finish = [&](int x, int y, const Ray& ray, const RayHit& hit, Counters& c) {
+      const size_t i = static_cast<size_t>(y) * static_cast<size_t>(view.width) + static_cast<size_t>(x);
+      buffer.claim_exclusive(i);  // the blocks partition the image
+      const Rgb color = options.shade ? shader_.shade(hit.prim, ray, hit.t, options.shadows, c) : Rgb{};
+      buffer.set(i, hit.prim, hit.t, color);
+      ++c.rays;
+      ++c.samples;
+    };
     arena_->arena.execute([&] {
       tbb::parallel_for(tbb::blocked_range2d<int>(0, view.height, 8, 0, view.width, 8),
                         [&](const tbb::blocked_range2d<int>& r) {
         Counters& c = local.local();
+        if (options.method == Method::Packet) {
+          // 4x4 blocks of the range, each a packet; a packet the tracer refuses is walked.
+          PacketTracer& tracer = tracers.local();
+          for (int y0 = r.rows().begin(); y0 < r.rows().end(); y0 += 4) {
+            for (int x0 = r.cols().begin(); x0 < r.cols().end(); x0 += 4) {
+              RayPacket packet;
+              int px[kPacketRays], py[kPacketRays];
+              for (int y = y0; y < std::min(y0 + 4, r.rows().end()); ++y) {
+                for (int x = x0; x < std::min(x0 + 4, r.cols().end()); ++x) {
+                  const Ray ray = view.ray(x, y);
+                  px[packet.count] = x;
+                  py[packet.count] = y;
+                  packet.add(ray, view.tmin(ray));
+                }
+              }
+              PacketResult result;
+              if (tracer.trace(packet, result, c)) {
+                for (int l = 0; l < packet.count; ++l) finish(px[l], py[l], packet.rays[l], result.hit[l], c);
+                continue;
+              }
+              for (int l = 0; l < packet.count; ++l) {
+                const RayHit hit = cast_ray(scene_, tree_, packet.rays[l], packet.tmin[l], c, &marks_);
+                ++c.rays_walked;
+                finish(px[l], py[l], packet.rays[l], hit, c);
+              }
+            }
+          }
+          return;
+        }
         for (int y = r.rows().begin(); y != r.rows().end(); ++y) {
           for (int x = r.cols().begin(); x != r.cols().end(); ++x) {
             const Ray ray = view.ray(x, y);
@@ -63,12 +106,7 @@ Counters Renderer::render(const View& view, const RenderOptions& options, Sample
             const RayHit hit = options.method == Method::Brute
                                    ? brute_force_hit(scene_, ray, tmin, c)
                                    : cast_ray(scene_, tree_, ray, tmin, c, &marks_);
-            const size_t i = static_cast<size_t>(y) * static_cast<size_t>(view.width) + static_cast<size_t>(x);
-            buffer.claim_exclusive(i);  // the blocks partition the image
-            const Rgb color = options.shade ? shader_.shade(hit.prim, ray, hit.t, options.shadows, c) : Rgb{};
-            buffer.set(i, hit.prim, hit.t, color);
-            ++c.rays;
-            ++c.samples;
+            finish(x, y, ray, hit, c);
             if (options.method == Method::RayWalk) ++c.rays_walked;
           }
         }

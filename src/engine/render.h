@@ -22,9 +22,10 @@ namespace frontier {
 // How Renderer finds each pixel's first hit. Which method of all (ray casting or another) a
 // frame is rendered with is the caller's choice of FrameRenderer; this picks among the three
 // ray-casting strategies inside one.
-enum class Method { Brute, RayWalk, Frustum };
+enum class Method { Brute, RayWalk, Frustum, Packet };
 
-// "brute", "raywalk", "frustum".
+// "brute", "raywalk", "frustum", "packet" (4x4 pixel blocks traced as ray packets,
+// src/engine/packet.h).
 const char* method_name(Method method);
 
 struct RenderOptions {
@@ -56,6 +57,7 @@ class Renderer {
   Shader shader_;
   CellMarks marks_;
   std::unique_ptr<FrustumCaster> caster_;  // made on first use
+  std::unique_ptr<class PacketLayout> layout_;  // made on first use of Method::Packet
   struct Arena;
   std::unique_ptr<Arena> arena_;
 };

@@ -259,6 +259,10 @@ int main(int argc, char** argv) {
                  "k-d tree: forced splits only if the larger side keeps at most this share (1: hard cap)")
       ->check(CLI::Range(0.0, 1.0));
   app.add_option("--json", json_path, "also write one JSON object per row to this file");
+  std::string profile;
+  app.add_option("--profile", profile,
+                 "only render frontier's METHOD (frustum, raywalk, packet) --repeats times, no table (for perf)")
+      ->check(CLI::IsMember({"frustum", "raywalk", "packet"}));
   CLI11_PARSE(app, argc, argv);
 
   const RTCBuildQuality quality = quality_name == "low"    ? RTC_BUILD_QUALITY_LOW
@@ -325,9 +329,28 @@ int main(int argc, char** argv) {
 
     for (int size : sizes) {
       const View view(camera, size, size);
+      if (!profile.empty()) {
+        RenderOptions options;
+        options.method = profile == "frustum" ? Method::Frustum : profile == "raywalk" ? Method::RayWalk : Method::Packet;
+        options.threads = threads;
+        options.shade = false;
+        SampleBuffer buffer;
+        Renderer renderer(scene, tree, threads);
+        double best = kInfinity;
+        for (int r = 0; r < repeats; ++r) {
+          const auto t0 = std::chrono::steady_clock::now();
+          renderer.render(view, options, buffer);
+          best = std::min(best, ms_since(t0));
+        }
+        fmt::print("{} {}² {}: best {:.1f} ms\n", name, size, profile, best);
+        continue;
+      }
       std::vector<Row> rows;
-      for (Method m : {Method::Frustum, Method::RayWalk}) {
-        Row row{m == Method::Frustum ? "frontier frustum casting" : "frontier ray walking", kInfinity, kd_ms, {}};
+      for (Method m : {Method::Frustum, Method::RayWalk, Method::Packet}) {
+        const char* label = m == Method::Frustum   ? "frontier frustum casting"
+                            : m == Method::RayWalk ? "frontier ray walking"
+                                                   : "frontier ray packets (4x4)";
+        Row row{label, kInfinity, kd_ms, {}};
         RenderOptions options;
         options.method = m;
         options.threads = threads;
