@@ -13,6 +13,7 @@ struct Counters {
   uint64_t rays_walked = 0;          // primary rays walked individually through cells
   uint64_t packet_rays = 0;          // primary rays traced in packets (src/engine/packet.h)
   uint64_t packet_filter_tests = 0;  // lane x triangle edge tests of packets (before the exact test)
+  uint64_t packet_leaves = 0;        // leaves packets entered (their lanes count in cell_visits)
   uint64_t samples = 0;              // pixels confirmed this frame
   uint64_t cells_touched = 0;        // distinct cells a frustum or ray entered
   uint64_t cell_visits = 0;          // cell entries counted with repetition

@@ -281,6 +281,7 @@ __attribute__((target_clones("avx512f", "avx2", "default"))) void trace_lanes(
     mask &= alive;
     if (mask != 0) {
       counters.cell_visits += uint64_t(std::popcount(mask));
+      ++counters.packet_leaves;
       if (marks != nullptr && marks->mark(cell)) ++counters.cells_touched;
       if (gate != nullptr && gate->missing(cell)) {
         gate->want(cell);

@@ -32,6 +32,20 @@ Rgb Shader::shade(uint32_t prim, const Ray& ray, double t, bool with_shadows, Co
   const PrimRef& ref = scene_.prims[prim];
   static const Material kDefault;
   const Material& m = ref.material < scene_.materials.size() ? scene_.materials[ref.material] : kDefault;
+  if (effects_.headlight && !effects_.specular && ref.kind == PrimKind::Triangle && scene_.triangle_normals.empty()) {
+    // What lit() computes for a flat triangle under the headlight alone, without its general
+    // machinery (a third of a fill's time per pixel): the normal faces the ray, so n · (-d) is
+    // |n · d| for the unit n (a degenerate triangle's normal is +z, as normal_of says).
+    ++counters.shading_ops;
+    const Triangle& tri = scene_.triangles[ref.index];
+    const Vec3 n = glm::cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
+    const double len = glm::length(n);
+    const double ndotl = len > 0.0 ? std::abs(glm::dot(n, ray.dir)) / len : std::abs(ray.dir.z);
+    Vec3 color = 0.1 * m.color;
+    if (ndotl > 0.0) color += m.kd * ndotl * m.color;
+    color = glm::clamp(color, Vec3(0.0), Vec3(1.0));
+    return {float(color.x), float(color.y), float(color.z)};
+  }
   const Vec3 p = ray.at(t);
   return lit(m, p, scene_.shading_normal(prim, p, ray), ray, t, with_shadows, counters, cells);
 }
