@@ -53,6 +53,7 @@ TEST(EngineRandom, TwoHundredScenesMatchBruteForce) {
   std::mt19937_64 rng(20261122);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   size_t ties = 0, pixels = 0;
+  uint64_t packet_rays = 0;
   for (int s = 0; s < 210; ++s) {
     Scene scene = testing::random_scene(rng, 20 + s % 120);
     KdBuildOptions opt;
@@ -73,9 +74,21 @@ TEST(EngineRandom, TwoHundredScenesMatchBruteForce) {
     const View view(cam, 41 + s % 7, 37 + s % 5);
     expect_matches_brute(scene, tree, view, "scene " + std::to_string(s), &ties);
     pixels += 4 * view.pixels();
+    if (s % 4 == 0) {
+      // The same tessellated: frustum casting traces its leaf frusta as packets only in
+      // scenes of triangles alone.
+      TessellateOptions tess;
+      tess.segments = 6;
+      const Scene triangles = tessellate(scene, tess);
+      const KdTree triangle_tree = KdTree::build(triangles, opt);
+      expect_matches_brute(triangles, triangle_tree, view, "tessellated scene " + std::to_string(s), &ties);
+      pixels += 5 * view.pixels();
+      packet_rays += frustum_counters(triangles, triangle_tree, view).packet_rays;
+    }
     if (HasFailure()) return;
   }
   EXPECT_LT(double(ties), 1e-4 * double(pixels)) << ties << " tie pixels of " << pixels;
+  EXPECT_GT(packet_rays, 0u) << "the tessellated scenes' leaf frusta were meant to go as packets";
 }
 
 // The three SPD scenes with their own cameras at 129² and 257².

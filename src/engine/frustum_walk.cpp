@@ -52,9 +52,17 @@ void FrustumCaster::walk_open_pixel(const Job& job, int x, int y, const Ray& ray
 // within the slack, so no hit is lost by starting at the cell's exit), at the cell's entry
 // otherwise, and from the near plane outside the root. A lane stopped by a missing cell is
 // parked as a lone walk would be; a block whose rays disagree on a direction's sign, or of
-// fewer than kMinPacketRays open pixels, is walked.
+// fewer than kMinPacketRays open pixels, is walked, and so is every pixel of a scene with
+// primitives other than triangles.
 void FrustumCaster::resolve_by_packets(const Job& job, Worker& w, bool from_next_cell) {
   constexpr int kMinPacketRays = 4;
+  // Packets filter triangles only; curved primitives would be tested exactly for every lane,
+  // where a lone walk's per-cell lists skip most (their screen rectangles and direction cones:
+  // rings.nff's frusta ran at half speed with packets). Scenes with any are walked.
+  if (scene_.triangles.size() != scene_.size()) {
+    resolve_by_walking(job, w, from_next_cell);
+    return;
+  }
   if (!w.packets) w.packets = std::make_unique<PacketTracer>(scene_, tree_);
   w.packets->bind(marks_, gate_, gate_ == nullptr ? packet_layout_.get() : nullptr);
   const size_t W = static_cast<size_t>(view_.width);
