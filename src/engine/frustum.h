@@ -81,9 +81,9 @@ class FrustumCaster {
   FrustumCaster(const Scene& scene, const KdTree& tree, const Shader& shader, int threads);
   ~FrustumCaster();
 
-  // Frusta of at most `pixels` × `pixels` that still need work resolve their pixels by
-  // walking them individually (the paper uses 2 × 2). Larger leaves trade frustum
-  // bookkeeping for per-pixel walks that share the frame's per-cell element lists.
+  // Frusta of at most `pixels` × `pixels` that still need work resolve their pixels
+  // individually: as 4×4 ray packets in a scene of triangles, else by walking them one by one
+  // (the paper walks 2 × 2). Larger leaves trade frustum bookkeeping for per-pixel work.
   // REQUIRES: pixels >= 2. Default kDefaultLeafPixels.
   static constexpr int kDefaultLeafPixels = 16;
   void set_leaf_pixels(int pixels) { leaf_ = pixels < 2 ? 2 : pixels; }
