@@ -14,6 +14,7 @@ namespace {
 
 constexpr int N = kPacketRays;
 using Mask = uint32_t;
+static_assert(N < 32, "a lane mask is a uint32_t and make_soa shifts 1 by the lane count");
 
 // The edge filter's margin, relative to max|d| · max|corner|²: the rounding of d · (b × c) is
 // below 40 ulps of that and the watertight test's (shear, 2-D cross products) below 60, so a
