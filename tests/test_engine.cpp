@@ -48,6 +48,20 @@ Counters frustum_counters(const Scene& scene, const KdTree& tree, const View& vi
   return renderer.render(view, options, buffer);
 }
 
+// An SPD scene tessellated with `segments` around a circle (empty, with a failure, when it does
+// not load).
+Scene tessellated_spd(const std::string& name, int segments) {
+  Scene loaded;
+  const std::string path = std::string(FRONTIER_DATA_DIR) + "/spd/" + name + ".nff";
+  if (Status s = load_scene(path, loaded); !s) {
+    ADD_FAILURE() << path << ": " << s.to_string();
+    return {};
+  }
+  TessellateOptions tess;
+  tess.segments = segments;
+  return tessellate(loaded, tess);
+}
+
 TEST(EngineRandom, TwoHundredScenesMatchBruteForce) {
   RecordProperty("methods", "ray walking; packets; frustum casting with 2x2, 5x5 and 16x16 leaves: ids against brute force");
   std::mt19937_64 rng(20261122);
@@ -227,11 +241,8 @@ TEST(EngineHardCases, FarFromOriginRendersTheSameIds) {
 // and still exact.
 TEST(EngineHardCases, PacketsFilterMostTestsAndWalkMixedSigns) {
   RecordProperty("methods", "packets: counters, and ids against brute force with mixed-sign blocks");
-  Scene loaded;
-  ASSERT_TRUE(load_scene(std::string(FRONTIER_DATA_DIR) + "/spd/rings.nff", loaded).is_ok());
-  TessellateOptions tess;
-  tess.segments = 8;
-  const Scene scene = tessellate(loaded, tess);
+  const Scene scene = tessellated_spd("rings", 8);
+  ASSERT_GT(scene.size(), 0u);
   const KdTree tree = KdTree::build(scene, {});
   const Camera cam = scene.camera ? *scene.camera : automatic_camera(scene.bounds());
   const View view(cam, 64, 64);
@@ -442,11 +453,8 @@ TEST(EngineHardCases, ClosedTessellatedSphereLeaksNothing) {
 // before forced splits were limited this build took 24 GB (8 segments: 21 GB).
 TEST(EngineHardCases, InseparableClustersKeepTheTreeSmall) {
   RecordProperty("methods", "k-d tree build: references per primitive; frustum casting ids against brute force");
-  Scene spheres;
-  ASSERT_TRUE(load_scene(std::string(FRONTIER_DATA_DIR) + "/spd/shells.nff", spheres).is_ok());
-  TessellateOptions coarse;
-  coarse.segments = 6;
-  const Scene scene = tessellate(spheres, coarse);
+  const Scene scene = tessellated_spd("shells", 6);
+  ASSERT_GT(scene.size(), 0u);
   const KdTree tree = KdTree::build(scene, {});
   EXPECT_LT(double(tree.reference_count()), 40.0 * double(scene.size()))
       << tree.reference_count() << " references for " << scene.size() << " primitives in " << tree.cells().size()
