@@ -127,8 +127,12 @@ void FrustumCaster::process(Job job, Worker& w) {
     if (step == Step::Moved) continue;
     if (step == Step::Done) return;
     // The frustum goes on through several cells. Before splitting it, ask the tree whether
-    // only a few elements (or none) lie ahead of it: then its pixels test just those.
-    if (look_ahead(job, rays, tmins, w)) return;
+    // only a few elements (or none) lie ahead of it: then its pixels test just those. Not one
+    // level above the leaf size in a scene of triangles: its leaves go on as ray packets, which
+    // cost less there than asking the tree (a 20 M terrain's fly-over at 1280x720: 0.13-0.14 of
+    // the worst frame's geometry pixels sampled against 0.09, p95 33 ms against 38-39).
+    const bool packets_next = scene_.triangles.size() == scene_.size() && job.small(2 * leaf_);
+    if (!packets_next && look_ahead(job, rays, tmins, w)) return;
     if (job.small(leaf_)) {
       resolve_by_packets(job, w, true);
       return;
