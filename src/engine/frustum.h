@@ -24,7 +24,8 @@
 //   pixels test only those, listed like a cell's elements (or, when the corners all hit one of
 //   them, a triangle, take their distance from its plane as fill_plane does), and when none
 //   does, it is background. This replaces the strips of lone walks along the images of cell
-//   boundaries over floors and open sky (gather_ahead);
+//   boundaries over floors and open sky (gather_ahead). In a scene of triangles only frusta
+//   above twice the leaf size look ahead: smaller ones split into packet leaves, cheaper there;
 // - leaf frusta that cannot advance trace their open pixels as ray packets of 4x4 pixels
 //   (src/engine/packet.h) from where the frustum is, not one walk per pixel (beyond the paper:
 //   one descent, one read of each leaf and a filter over its triangles for 16 rays);
