@@ -76,7 +76,7 @@ void FrustumCaster::begin(const View& view, SampleBuffer& buffer, CellMarks& mar
     cell_cache_ = std::make_unique<CellCache[]>(cell_cache_count_);
   }
   compute_eye_terms(view);
-  if (gate_ == nullptr && !packet_layout_) packet_layout_ = std::make_unique<PacketLayout>(scene_, tree_);
+  if (gate_ == nullptr && packets_apply() && !packet_layout_) packet_layout_ = std::make_unique<PacketLayout>(scene_, tree_);
   reset_workers(view.pixels());
   arenas_in_.clear();
   current_.clear();

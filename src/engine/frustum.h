@@ -169,6 +169,9 @@ class FrustumCaster {
   void resolve_by_walking(const Job& job, Worker& w, bool from_next_cell);
   void walk_open_pixel(const Job& job, int x, int y, const Ray& ray, double tmin, Worker& w, bool from_next_cell);
   void resolve_by_packets(const Job& job, Worker& w, bool from_next_cell);
+  // Leaf frusta go on as ray packets: the scene is all triangles (packets filter nothing else;
+  // curved primitives are cheaper walked through the cells' lists).
+  bool packets_apply() const { return scene_.triangles.size() == scene_.size(); }
   template <typename Visit>
   void for_each_open_pixel(const Job& job, const Visit& visit) const;
   // Pixel rectangle covered by a reference's bounds. `bounded` is false when the bounds reach

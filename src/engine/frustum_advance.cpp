@@ -131,7 +131,7 @@ void FrustumCaster::process(Job job, Worker& w) {
     // level above the leaf size in a scene of triangles: its leaves go on as ray packets, which
     // cost less there than asking the tree (a 20 M terrain's fly-over at 1280x720: 0.13-0.14 of
     // the worst frame's geometry pixels sampled against 0.09, p95 33 ms against 38-39).
-    const bool packets_next = scene_.triangles.size() == scene_.size() && job.small(2 * leaf_);
+    const bool packets_next = packets_apply() && job.small(2 * leaf_);
     if (!packets_next && look_ahead(job, rays, tmins, w)) return;
     if (job.small(leaf_)) {
       resolve_by_packets(job, w, true);

@@ -56,10 +56,10 @@ void FrustumCaster::walk_open_pixel(const Job& job, int x, int y, const Ray& ray
 // primitives other than triangles.
 void FrustumCaster::resolve_by_packets(const Job& job, Worker& w, bool from_next_cell) {
   constexpr int kMinPacketRays = 4;
-  // Packets filter triangles only; curved primitives would be tested exactly for every lane,
-  // where a lone walk's per-cell lists skip most (their screen rectangles and direction cones:
-  // rings.nff's frusta ran at half speed with packets). Scenes with any are walked.
-  if (scene_.triangles.size() != scene_.size()) {
+  // Curved primitives would be tested exactly for every lane, where a lone walk's per-cell
+  // lists skip most (their screen rectangles and direction cones: rings.nff's frusta ran at
+  // half speed with packets).
+  if (!packets_apply()) {
     resolve_by_walking(job, w, from_next_cell);
     return;
   }

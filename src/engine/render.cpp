@@ -54,8 +54,8 @@ Counters Renderer::render(const View& view, const RenderOptions& options, Sample
     marks_.resize(tree_.cells().size());
     marks_.begin_frame();
     tbb::enumerable_thread_specific<Counters> local;
-    // A factory, not constructor arguments: those the container would keep copies of (the scene).
     if (options.method == Method::Packet && !layout_) layout_ = std::make_unique<PacketLayout>(scene_, tree_);
+    // A factory, not constructor arguments: those the container would keep copies of (the scene).
     tbb::enumerable_thread_specific<PacketTracer> tracers(
         [&] { return PacketTracer(scene_, tree_, &marks_, nullptr, layout_.get()); });
     const auto finish = [&](int x, int y, const Ray& ray, const RayHit& hit, Counters& c) {
