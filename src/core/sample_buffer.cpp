@@ -29,7 +29,10 @@ size_t SampleBuffer::confirmed_count() const {
 
 void CellMarks::resize(size_t cells) {
   if (cells <= size_ && stamp_) return;  // stamps of earlier frames are stale anyway
-  size_ = cells;
+  // Geometric: a walk's tree gains cells every frame, and a fresh array per frame cost page
+  // faults on every stamp (an exterior orbit's pegged frames at 1280x720).
+  size_ = std::max(cells, size_ + size_ / 2);
+  cells = size_;
   stamp_ = std::make_unique<std::atomic<uint32_t>[]>(cells);
   for (size_t i = 0; i < cells; ++i) stamp_[i].store(0, std::memory_order_relaxed);
   frame_ = 1;
