@@ -39,9 +39,10 @@ void add_store_options(CLI::App& app, ViewerOptions& o) {
                  "walk mode: memory budget for the collision grid's bricks, paged in as the walker reaches them "
                  "(default 64M)");
   app.add_option("--pixel-error", o.pixel_error,
-                 "store with proxies: draw a node by its proxy when the proxy's error bound projects below T pixels "
-                 "(at the node's point nearest the eye), and missing cells by their nearest loaded ancestor's proxy "
-                 "while a budgeted frame waits for their pages; 0 = exact (every cell from its page). A still camera "
+                 "store with proxies: each image draws one cut of the tree, chosen before its first ray: a node "
+                 "whose proxy's error bound projects below T pixels (at the node's point nearest the eye), or whose "
+                 "children are not all resident, is drawn by its proxy, else by its children; what the rays reached "
+                 "above T is asked for, for later images. 0 = exact (every cell from its page). A still camera "
                  "refines to 0. Default 1, and 0 with --sync-paging")
       ->check(checks::non_negative());
   app.add_option("--path", o.path_file, "store, headless: camera path (.cam, from frontier-gen path)");

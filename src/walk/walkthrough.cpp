@@ -7,8 +7,11 @@
 #include <nlohmann/json.hpp>
 
 #include <malloc.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
 
 #include <chrono>
+#include <functional>
 
 namespace frontier {
 
@@ -512,9 +515,16 @@ void Walkthrough::report_image(FrameReport& r, const Counters& counters) const {
     r.proxy_nodes = s.proxy_nodes;
     r.proxy_cells = s.proxy_cells;
     r.requests = s.requests;
-    for (size_t i = 0; i < buffer_.size(); ++i) {
-      if (buffer_.confirmed(i) && world_->stand_in_prim(buffer_.prim(i))) ++r.proxy_pixels;
-    }
+    // Over every pixel, so in parallel: at 1280x720 a frame's millisecond on one thread.
+    r.proxy_pixels = tbb::parallel_reduce(
+        tbb::blocked_range<size_t>(0, buffer_.size(), size_t{1} << 14), uint64_t{0},
+        [&](const tbb::blocked_range<size_t>& range, uint64_t n) {
+          for (size_t i = range.begin(); i < range.end(); ++i) {
+            if (buffer_.confirmed(i) && world_->stand_in_prim(buffer_.prim(i))) ++n;
+          }
+          return n;
+        },
+        std::plus<>());
   }
 }
 
