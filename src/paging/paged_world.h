@@ -289,6 +289,8 @@ class PagedWorld final : public CellGate {
   // page carries none built with proxy_build_options (any thread: reads the model only).
   // False when the page left the cache meanwhile.
   bool decode_proxy(uint32_t node, ProxyDecoded& out) const;
+  // Some cell the cut asked for has its page in, not yet decoded.
+  bool cells_ready() const;
   // Whether the frame's threads decode what arrived (in sync, within its deadline): in frames
   // that wait for their pages, and before a pegged cut's rays (its decoder thread pauses).
   bool frame_decodes() const;
