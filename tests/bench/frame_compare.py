@@ -4,6 +4,7 @@
     python3 tests/bench/frame_compare.py --exact DIR --run T=DIR [--run T=DIR ...]
                                          [--label NAME] [--from 2] [--cap 99]
                                          [--tsv OUT.tsv] [--markdown OUT.md] [--json OUT.jsonl]
+                                         [--pair T:FRAME:OUT.png]
 
 Every DIR is what tests/bench/pixel_error_curve.sh leaves for one run of frontier-view:
 DIR/report.jsonl (--report), DIR/png/frame_NNNNN.png (--png-dir, --png-every 1) and
@@ -29,8 +30,11 @@ frame indices start at 0), frame by frame against the exact frame of the same in
             assumption that pixels of resident pages name the exact primitive (an upper bound
             when they do not; capped at 1).
 Whole run (all frames, from report.jsonl): p50/p95 frame ms, total bytes read, max resident MiB,
-and the first frame (from frame 0) with coverage >= 99 % and the walk time until it ends (the
+peak RSS MiB (the process's, from the summary), the most frames' `parked` (jobs or pixels that
+waited for a page: a pegged cut never parks), and the first frame (from frame 0) with coverage >= 99 % and the walk time until it ends (the
 sum of frame_ms of frames 0..k; the store's opening is not in it).
+--pair T:FRAME:OUT.png writes run T's frame FRAME beside the exact frame of that index (left: the
+run, right: exact, 8 grey pixels between): what a user sees against what it should be.
 Exit codes: 0 ok, 1 bad input (missing or malformed files, named), 2 bad options.
 Pure Python (zlib only; no numpy or PIL needed).
 """
@@ -129,6 +133,33 @@ def read_png(path):
             rgb[c::3] = out[c::4]
         out = rgb
     return width, height, bytes(out)
+
+
+def write_png(path, width, height, rgb):
+    """An 8-bit RGB PNG of `rgb` (rows top to bottom), every row unfiltered."""
+    stride = 3 * width
+    raw = b"".join(b"\x00" + rgb[y * stride:(y + 1) * stride] for y in range(height))
+
+    def chunk(kind, body):
+        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body) & 0xFFFFFFFF)
+
+    header = struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)
+    data = b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(raw, 6)) + chunk(b"IEND", b"")
+    try:
+        with open(path, "wb") as f:
+            f.write(data)
+    except OSError as e:
+        raise BadInput(f"{path}: {e.strerror}")
+
+
+def write_pair(path, left, right, gap=8):
+    """left and right, (width, height, rgb) of one size, side by side with a grey gap."""
+    (w, h, a), (w2, h2, b) = left, right
+    if (w, h) != (w2, h2):
+        raise BadInput(f"{path}: frames of {w}x{h} and {w2}x{h2} cannot be paired")
+    grey = b"\x80" * (3 * gap)
+    rows = [a[y * 3 * w:(y + 1) * 3 * w] + grey + b[y * 3 * w:(y + 1) * 3 * w] for y in range(h)]
+    write_png(path, 2 * w + gap, h, b"".join(rows))
 
 
 def read_ids(path, pixels):
@@ -331,6 +362,7 @@ def compare(exact_dir, exact_frames, run_dir, args, exact_cache):
         "bytes_read_mib": summary["total_bytes_read"] / 1048576.0,
         "max_resident_mib": summary["max_resident_bytes"] / 1048576.0,
         "peak_rss_mib": summary.get("peak_rss_mib", float("nan")),
+        "max_parked": max((fr.get("parked", 0) for fr in frames), default=0),
         "mean_psnr_db": mean(psnrs),
         "min_psnr_db": min(psnrs) if psnrs else float("nan"),
         "identical_frames": sum(1 for p in psnrs if p >= args.cap),
@@ -359,6 +391,7 @@ COLUMNS = [
     ("first >=99 %", "{}"),
     ("proxy px", "{:.3f}"), ("proxy ids differ", "{}"),
     ("overdraw px/frame", "{:.0f}"), ("overdraw dist mean/p95/max", "{}"), ("samples", "{:.3f}"),
+    ("peak RSS MiB", "{:.0f}"), ("parked", "{}"),
 ]
 
 
@@ -370,7 +403,7 @@ def cells(label, r):
               r["mean_psnr_db"], r["min_psnr_db"], r["mean_id_agreement"], r["mean_coverage"], r["min_coverage"],
               r["mean_image_coverage"], r["min_image_coverage"], r["black_frames"], first,
               r["mean_proxy_share"], differ,
-              r["overdraw_pixels_per_frame"], dist, r["mean_samples_share"]]
+              r["overdraw_pixels_per_frame"], dist, r["mean_samples_share"], r["peak_rss_mib"], r["max_parked"]]
     return [fmt.format(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else str(v)
             for (_, fmt), v in zip(COLUMNS, values)]
 
@@ -386,6 +419,8 @@ def main():
     p.add_argument("--tsv", help="append the table's rows here (tab-separated, with the walk's label)")
     p.add_argument("--markdown", help="write the Markdown table here (default: stdout)")
     p.add_argument("--json", help="append one JSON line per run here")
+    p.add_argument("--pair", action="append", default=[], metavar="T:FRAME:OUT.png",
+                   help="write run T's frame FRAME beside the exact one (repeatable)")
     try:
         args = p.parse_args()
     except SystemExit as e:
@@ -396,6 +431,13 @@ def main():
             print(f"frame_compare: --run {r}: expected T=DIR", file=sys.stderr)
             sys.exit(2)
         runs.append(r.split("=", 1))
+    pairs = []
+    for q in args.pair:
+        parts = q.split(":", 2)
+        if len(parts) != 3 or not parts[1].isdigit() or parts[0] not in [t for t, _ in runs]:
+            print(f"frame_compare: --pair {q}: expected T:FRAME:OUT.png with T one of the runs", file=sys.stderr)
+            sys.exit(2)
+        pairs.append((parts[0], int(parts[1]), parts[2]))
     if not runs or args.first < 0:
         print("frame_compare: need --run T=DIR and --from >= 0", file=sys.stderr)
         sys.exit(2)
@@ -404,6 +446,10 @@ def main():
         cache = {}
         exact = compare(args.exact, exact_frames, args.exact, args, cache)
         results = [("exact (sync)", exact)] + [(t, compare(args.exact, exact_frames, d, args, cache)) for t, d in runs]
+        for t, f, out in pairs:
+            run_dir = dict(runs)[t]
+            left = read_png(frame_file(run_dir, "png", f))
+            write_pair(out, left, read_png(frame_file(args.exact, "png", f)))
     except BadInput as e:
         print(f"frame_compare: {e}", file=sys.stderr)
         sys.exit(1)
