@@ -24,8 +24,8 @@
 //   pixels test only those, listed like a cell's elements (or, when the corners all hit one of
 //   them, a triangle, take their distance from its plane as fill_plane does), and when none
 //   does, it is background. This replaces the strips of lone walks along the images of cell
-//   boundaries over floors and open sky (gather_ahead). In a scene of triangles only frusta
-//   above twice the leaf size look ahead: smaller ones split into packet leaves, cheaper there;
+//   boundaries over floors and open sky (gather_ahead). In a scene of (almost only) triangles,
+//   only frusta above twice the leaf size look ahead: smaller ones split into packet leaves;
 // - leaf frusta that cannot advance trace their open pixels as ray packets of 4x4 pixels
 //   (src/engine/packet.h) from where the frustum is, not one walk per pixel (beyond the paper:
 //   one descent, one read of each leaf and a filter over its triangles for 16 rays);
@@ -83,8 +83,9 @@ class FrustumCaster {
   ~FrustumCaster();
 
   // Frusta of at most `pixels` × `pixels` that still need work resolve their pixels
-  // individually: as 4×4 ray packets in a scene of triangles, else by walking them one by one
-  // (the paper walks 2 × 2). Larger leaves trade frustum bookkeeping for per-pixel work.
+  // individually: as 4×4 ray packets in a scene of (almost only) triangles (packets_apply()),
+  // else by walking them one by one (the paper walks 2 × 2). Larger leaves trade frustum
+  // bookkeeping for per-pixel work.
   // REQUIRES: pixels >= 2. Default kDefaultLeafPixels.
   static constexpr int kDefaultLeafPixels = 16;
   void set_leaf_pixels(int pixels) { leaf_ = pixels < 2 ? 2 : pixels; }
@@ -169,9 +170,13 @@ class FrustumCaster {
   void resolve_by_walking(const Job& job, Worker& w, bool from_next_cell);
   void walk_open_pixel(const Job& job, int x, int y, const Ray& ray, double tmin, Worker& w, bool from_next_cell);
   void resolve_by_packets(const Job& job, Worker& w, bool from_next_cell);
-  // Leaf frusta go on as ray packets: the scene is all triangles (packets filter nothing else;
-  // curved primitives are cheaper walked through the cells' lists).
-  bool packets_apply() const { return scene_.triangles.size() == scene_.size(); }
+  // Leaf frusta go on as ray packets: the scene is (almost) all triangles. Packets filter only
+  // triangles and test other primitives exactly per lane, where a walk's cell lists skip most
+  // (rings.nff, all spheres and cones, ran at half speed with packets); a few curved primitives
+  // among millions of triangles must not send every frustum walking (an 8 M-triangle mountain
+  // under four spheres at 1280x720: a sample on 0.27 of the worst frame's geometry pixels once
+  // a sphere's cell was paged in, against 0.6 while proxies stood in for them).
+  bool packets_apply() const { return 64 * (scene_.size() - scene_.triangles.size()) <= scene_.size(); }
   template <typename Visit>
   void for_each_open_pixel(const Job& job, const Visit& visit) const;
   // Pixel rectangle covered by a reference's bounds. `bounded` is false when the bounds reach
