@@ -267,6 +267,35 @@ TEST(EngineHardCases, PacketsFilterMostTestsAndWalkMixedSigns) {
   expect_matches_brute(scene, tree, down, "packets looking down -z");
 }
 
+// A few curved primitives among many triangles: leaf frusta still go as packets (which test the
+// spheres exactly per lane), and every method still equals brute force. Each sphere is the
+// original of one of rings.nff's tessellated spheres, so its surface bulges out between the
+// tessellation's vertices: hits on either lie within a hair of each other.
+TEST(EngineHardCases, PacketsWithAFewSpheresAmongTrianglesMatchBruteForce) {
+  RecordProperty("methods", "frustum casting with packets over triangles and a few spheres: ids against brute force");
+  Scene loaded;
+  const std::string path = std::string(FRONTIER_DATA_DIR) + "/spd/rings.nff";
+  ASSERT_TRUE(load_scene(path, loaded)) << path;
+  Scene scene = tessellated_spd("rings", 6);
+  ASSERT_GT(scene.size(), 0u);
+  for (uint32_t i = 0, added = 0; i < loaded.size() && added < 6; ++i) {
+    if (loaded.prims[i].kind != PrimKind::Sphere) continue;
+    scene.add_sphere(loaded.spheres[loaded.prims[i].index], uint32_t(scene.size()), loaded.prims[i].material);
+    ++added;
+  }
+  ASSERT_GT(scene.spheres.size(), 0u);
+  ASSERT_LE(64 * scene.spheres.size(), scene.size()) << "a few curved primitives among many triangles";
+  const KdTree tree = KdTree::build(scene, {});
+  const Camera cam = scene.camera ? *scene.camera : automatic_camera(scene.bounds());
+  const View view(cam, 48, 48);
+  EXPECT_GT(frustum_counters(scene, tree, view).packet_rays, 0u) << "leaf frusta were meant to go as packets";
+  expect_matches_brute(scene, tree, view, "rings tessellated, with six of its spheres");
+  // Close to the first sphere, which then fills much of the view.
+  const Sphere& s = scene.spheres.front();
+  const View near(camera_at(s.center + Vec3(0.0, -4.0 * s.radius, 1.5 * s.radius), s.center, 40.0), 32, 32);
+  expect_matches_brute(scene, tree, near, "close to one of the spheres");
+}
+
 // Walls and floors that cover whole frusta are filled without a ray per pixel (fill_plane):
 // a floor of two triangles, a wall, and spheres, cones and small triangles standing on and in
 // front of them (occluders, some within a hair of the floor), seen from high, from a grazing
