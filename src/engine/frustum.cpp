@@ -71,13 +71,7 @@ void FrustumCaster::begin(const View& view, SampleBuffer& buffer, CellMarks& mar
   marks.begin_frame();
   samples_done_ = 0;
   ++frame_;
-  if (cell_cache_count_ < tree_.cells().size()) {
-    // Earlier entries are stale (their stamps name earlier frames). Grown geometrically: a
-    // paged walk's tree gains cells every image, and an exact fresh array each time cost page
-    // faults over every entry (a fifth of the page-fault time of a pegged exterior orbit).
-    cell_cache_count_ = std::max(tree_.cells().size(), cell_cache_count_ + cell_cache_count_ / 2);
-    cell_cache_ = std::make_unique<CellCache[]>(cell_cache_count_);
-  }
+  grow_cell_cache(tree_.cells().size());
   compute_eye_terms(view);
   if (gate_ == nullptr && packets_apply() && !packet_layout_) packet_layout_ = std::make_unique<PacketLayout>(scene_, tree_);
   reset_workers(view.pixels());
@@ -315,19 +309,24 @@ void FrustumCaster::tree_changed() {
   const size_t cells = tree_.cells().size();
   marks_->grow(cells);
   for (auto& w : workers_) w->next_cells.clear();  // cells may have become subtrees
-  if (cell_cache_count_ < cells) {
-    // Entries of this frame move along; new cells start unstamped. Grown geometrically: a
-    // walk grafts a few cells at a time.
-    const size_t capacity = std::max(cells, cell_cache_count_ + cell_cache_count_ / 2);
-    auto bigger = std::make_unique<CellCache[]>(capacity);
-    for (size_t c = 0; c < cell_cache_count_; ++c) {
-      bigger[c].entries = std::move(cell_cache_[c].entries);
-      bigger[c].stamp.store(cell_cache_[c].stamp.load(std::memory_order_relaxed), std::memory_order_relaxed);
-      bigger[c].seen.store(cell_cache_[c].seen.load(std::memory_order_relaxed), std::memory_order_relaxed);
-    }
-    cell_cache_ = std::move(bigger);
-    cell_cache_count_ = capacity;
+  grow_cell_cache(cells);
+}
+
+void FrustumCaster::grow_cell_cache(size_t cells) {
+  if (cell_cache_count_ >= cells) return;
+  // Entries move along (this frame's stay valid; earlier frames' are stale by their stamps);
+  // new cells start unstamped. Grown geometrically: a paged walk's tree gains cells every
+  // image, and an exact fresh array each time cost page faults over every entry (a fifth of
+  // the page-fault time of a pegged exterior orbit).
+  const size_t capacity = std::max(cells, cell_cache_count_ + cell_cache_count_ / 2);
+  auto bigger = std::make_unique<CellCache[]>(capacity);
+  for (size_t c = 0; c < cell_cache_count_; ++c) {
+    bigger[c].entries = std::move(cell_cache_[c].entries);
+    bigger[c].stamp.store(cell_cache_[c].stamp.load(std::memory_order_relaxed), std::memory_order_relaxed);
+    bigger[c].seen.store(cell_cache_[c].seen.load(std::memory_order_relaxed), std::memory_order_relaxed);
   }
+  cell_cache_ = std::move(bigger);
+  cell_cache_count_ = capacity;
 }
 
 // Parked work starts again from the eye: the cell it waited for may have been refined into a

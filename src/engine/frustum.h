@@ -249,6 +249,8 @@ class FrustumCaster {
 
   // Per-cell incidence prototypes of this frame (see cell_entries).
   uint32_t frame_ = 0;
+  // Makes cell_cache_ hold at least `cells` entries, keeping those it has.
+  void grow_cell_cache(size_t cells);
   size_t cell_cache_count_ = 0;
   std::unique_ptr<CellCache[]> cell_cache_;
   mutable std::array<std::mutex, 64> cell_locks_;
