@@ -19,7 +19,7 @@ void add_scene_options(CLI::App& app, ViewerOptions& o) {
   app.add_option("--size", o.size_text, "image size WxH (default 640x480 for stores; a model's own resolution or 512x512)");
   app.add_option("--threads", o.threads, "render threads (0 = all cores; at most 4 per hardware thread)")
       ->check(checks::thread_count());
-  auto* peg_time = app.add_option("--frame-ms", o.frame_ms, "peg frame time: stop each frame after MS milliseconds (window default: 50)")
+  auto* peg_time = app.add_option("--frame-ms", o.frame_ms, "peg frame time: stop each frame after MS milliseconds (window default: 50); a store's image with proxies that is done sooner spends the rest on the pages its cut asked for")
                        ->check(checks::positive());
   auto* peg_samples = app.add_option("--samples", o.samples, "peg sample count: stop each frame after N samples")
                           ->check(checks::positive());

@@ -448,6 +448,7 @@ void PagedWorld::graft(Decoded& d) {
   if (grafted_image_[d.cell] == image_) ++counters_.cells_reread;
   grafted_image_[d.cell] = image_;
   ++counters_.cells_paged_in;
+  ++installs_;
   counters_.primitives_paged_in += g.prims;
 }
 

@@ -49,7 +49,9 @@
 //            (end_frame()), each cut node its rays entered whose bound projects to T or more asks
 //            for what lies below it, down to where the bounds project below T (a few levels at
 //            most): proxies, then pages, largest projected error first. Nothing is asked for
-//            where no ray went. What arrived is installed at the next begin_frame().
+//            where no ray went. What arrived is installed by sync(): in the next frame's paging
+//            share before its rays, and (the Walkthrough's use_slack()) in what is left of a frame
+//            whose image finished before its peg; the next begin_frame() draws it.
 //   waited   (T > 0, frames that run to completion, e.g. --sync-paging): the nodes in view whose
 //            bounds project below T are drawn by their proxies, read at begin_frame() if they are
 //            not resident; below the others, rays park on missing cells as in the exact path.
@@ -216,6 +218,8 @@ class PagedWorld final : public CellGate {
   // Times a chosen cut differed from the one before: an image drawn with proxies is out of date
   // once this grows.
   uint64_t cut_changes() const { return cut_changes_; }
+  // Cells grafted and proxies installed so far (it only grows).
+  uint64_t installs() const { return installs_; }
   // Proxies and pages the cut asked for that are not in yet.
   size_t requests_outstanding() const;
   // What the image's rays reached of the cut, as of the last end_frame().
@@ -360,6 +364,7 @@ class PagedWorld final : public CellGate {
   static constexpr double kCutFullShare = 0.75;
 
   const StoreModel& model_;
+  uint64_t installs_ = 0;  // installs()
   std::unique_ptr<store::StorePageSource> source_;
   std::unique_ptr<store::PageCache> cache_;
   KdBuildOptions cell_build_;

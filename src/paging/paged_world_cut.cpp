@@ -167,6 +167,7 @@ bool PagedWorld::install_proxy(ProxyDecoded& p) {
   ++proxies_resident_;
   stamp_proxy(p.node);
   ++counters_.proxies_loaded;
+  ++installs_;
   return true;
 }
 

@@ -12,6 +12,7 @@
 
 #include <chrono>
 #include <functional>
+#include <thread>
 
 namespace frontier {
 
@@ -26,6 +27,8 @@ constexpr int kPrefetchFrames = 4;
 constexpr double kPassFill = 0.75;
 // Share of a pegged frame time that paging in (on the frame's thread) may take at a time.
 constexpr double kPageInShare = 0.25;
+// What use_slack() leaves of a pegged frame for the frame's reports (at most a tenth of it).
+constexpr double kSlackReserveMs = 0.5;
 
 bool same_camera(const Camera& a, const Camera& b) {
   return a.eye == b.eye && a.look_at == b.look_at && a.up == b.up && a.vfov_deg == b.vfov_deg;
@@ -309,12 +312,13 @@ FrameReport Walkthrough::render_frame(const Camera& camera, bool deferred_now) {
   r.cells_touched = world_->end_frame(marks_);
   report_image(r, counters);
   image_proxy_pixels_ = r.proxy_pixels;
+  const double slack = use_slack(plan);
   report_paging(r);
   r.frame_ms = ms_since(start);
   if (plan.overtime) r.floor_ms = std::max(0.0, r.frame_ms - options_.budget.ms);
   // The estimate follows increases at once and decreases slowly (a late frame costs more
   // than a few samples).
-  const double finish = ms_since(finish_start);
+  const double finish = ms_since(finish_start) - slack;  // the slack is not bookkeeping
   finish_ms_ = finish > finish_ms_ ? finish : 0.9 * finish_ms_ + 0.1 * finish;
   report_oracle(r);
   return r;
@@ -399,6 +403,26 @@ double Walkthrough::render_image(FramePlan& plan, Counters& counters) {
     stall_ms += world_->wait_for_pages(plan.wait_for_all ? Clock::time_point::max() : plan.deadline);
   }
   return stall_ms;
+}
+
+double Walkthrough::use_slack(const FramePlan& plan) {
+  if (!world_->pegged_cut() || image_pixel_error_ <= 0.0 || options_.budget.ms <= 0.0 || !caster_->complete()) {
+    return 0.0;
+  }
+  // The frame's own end: what is left of its time after the bookkeeping still to come.
+  const auto deadline = plan.start + ms_duration(options_.budget.ms - std::min(kSlackReserveMs, 0.1 * options_.budget.ms));
+  const auto start = Clock::now();
+  bool changed = false;
+  // The image is done: what this does only appends to the world (no primitive is renumbered,
+  // so the image's ids stay) and is drawn once the next image chooses its cut.
+  while (Clock::now() < deadline && world_->requests_outstanding() > 0) {
+    const uint64_t before = world_->installs();
+    changed = world_->sync(deadline) || changed;
+    // Nothing arrived to decode: wait a little for the reads asked for.
+    if (world_->installs() == before) std::this_thread::sleep_for(std::chrono::microseconds(300));
+  }
+  if (changed) caster_->tree_changed();
+  return ms_since(start);
 }
 
 Clock::time_point Walkthrough::page_in_slice(const FramePlan& plan) const {

@@ -247,6 +247,9 @@ class Walkthrough {
   // Runs job slices, pages in and waits for pages until the image is complete or the frame's
   // budget is spent; returns the time spent waiting for pages (stall_ms).
   double render_image(FramePlan& plan, Counters& counters);
+  // A pegged cut's image that finished before its frame time: the rest of the frame decodes
+  // and installs what the cut asked for (used from the next image on). Returns the ms spent.
+  double use_slack(const FramePlan& plan);
   // True when the frame must end now; moves the deadline once for the quality floor.
   bool out_of_time(FramePlan& plan) const;
   // When only parked work is left and no page is on its way: frees room and starts the next
