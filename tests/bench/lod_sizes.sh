@@ -16,6 +16,9 @@
 #   OUT_DIR/plots/lod_t_curve.png          mean PSNR, the worst frame's sampled share of geometry
 #                                          pixels and the median frame time against T (gnuplot,
 #                                          Debian's gnuplot-nox, when installed)
+# Sizes run largest first: a size whose double is among them (640x360 and 1280x720) is also
+# compared against that size's exact frames, 2x2 averaged (frame_compare.py --supersampled: four
+# samples a pixel, the model as it looks rather than one aliased sample of it).
 # The stores and paths are made by the commands REPORT.md section 9 lists (a 100 M-triangle
 # store takes most of an hour to build). Exit codes: 0 ok, 1 a walk failed, 2 bad options.
 set -euo pipefail
@@ -41,7 +44,7 @@ while [[ $# -gt 0 ]]; do
     --cache) cache="$2"; shift 2 ;;
     --frame-ms) frame_ms="$2"; shift 2 ;;
     --threads) threads="$2"; shift 2 ;;
-    -h|--help) sed -n '2,20p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,23p' "$0"; exit 0 ;;
     -*) echo "lod_sizes: unknown option $1" >&2; exit 2 ;;
     *) [[ -z "$out" ]] || { echo "lod_sizes: one OUT_DIR, got $out and $1" >&2; exit 2; }; out="$1"; shift ;;
   esac
@@ -70,9 +73,13 @@ jsonl="$out/lod_sizes.jsonl"
   echo "page cache dropped before every walk."
   echo
 } >> "$md"
+sizes="$(for z in $sizes; do echo "$z"; done | awk -Fx '{ print $1 * $2, $0 }' | sort -rn | cut -d' ' -f2 | tr '\n' ' ')"
 for w in "${walks[@]}"; do
   label="${w%%=*}"; rest="${w#*=}"; store="${rest%%:*}"; path="${rest#*:}"
   for size in $sizes; do
+    double="$((2 * ${size%x*}))x$((2 * ${size#*x}))"
+    ss=()
+    [[ " $sizes " == *" $double "* ]] && ss=(--supersampled "$out/${label}_$double/exact")
     dir="$out/${label}_$size"
     cam="$path"
     if [[ -n "$frames" ]]; then  # the first N frames of the path
@@ -83,7 +90,7 @@ for w in "${walks[@]}"; do
     tests=("$here/pixel_error_curve.sh" --store "$store" --path "$cam" --dir "$dir" --build "$build" --size "$size"
            --cache "$cache" --frame-ms "$frame_ms" --threads "$threads" --errors "$errors" --label "${label}_$size"
            --cold --reuse-exact --pair "$pair_frame:$out/plots/${label}_${size}_frame$pair_frame.png"
-           --markdown "$dir.md" --json "$dir.jsonl" --commands "$out/commands.txt")
+           --markdown "$dir.md" --json "$dir.jsonl" --commands "$out/commands.txt" "${ss[@]}")
     rm -f "$dir.jsonl"
     "${tests[@]}" || { echo "lod_sizes: $label at $size failed" >&2; exit 1; }
     python3 - "$dir.jsonl" "$label" "$size" >> "$jsonl" <<'EOF'

@@ -5,7 +5,7 @@
 #   tests/bench/pixel_error_curve.sh --store S --path P --dir D [--build B] [--size WxH]
 #       [--cache 512M] [--frame-ms 33] [--threads 2] [--errors "0 0.5 1 2 4 8"] [--label NAME]
 #       [--repeats N] [--tsv F] [--json F] [--markdown F] [--commands F]
-#       [--cold] [--reuse-exact] [--pair FRAME:OUT.png]
+#       [--cold] [--reuse-exact] [--pair FRAME:OUT.png] [--supersampled DIR]
 #
 # 1. the exact reference: T = 0 with --sync-paging (every frame complete), PNGs and ids of
 #    every frame (D/exact);
@@ -22,6 +22,8 @@
 # store from disk, as a user's first walk does). --reuse-exact keeps D/exact when an earlier run
 # left it complete (the exact frames do not depend on timing; at 1280x720 on 20 M triangles they
 # take seconds each). --pair FRAME:OUT.png writes the T = 1 walk's frame FRAME beside the exact one.
+# --supersampled DIR: the exact walk at twice the width and height (DIR/png, e.g. another run's
+# exact/): frame_compare.py's PSNR against its 2x2 means (4 samples a pixel) too.
 # The store's proxy error bounds by depth (frontier-store info, when built) go to D/store_info.txt.
 # Markdown table to --markdown (default: stdout); rows appended to --tsv/--json. Every run
 # starts the viewer afresh (the OS page cache is dropped only with --cold).
@@ -45,6 +47,7 @@ markdown=""
 commands=""
 cold=0
 reuse_exact=0
+supersampled=""
 pair=""
 while [[ $# -gt 0 ]]; do
   case "$1" in
@@ -66,7 +69,8 @@ while [[ $# -gt 0 ]]; do
     --cold) cold=1; shift ;;
     --reuse-exact) reuse_exact=1; shift ;;
     --pair) pair="$2"; shift 2 ;;
-    -h|--help) sed -n '2,28p' "$0"; exit 0 ;;
+    --supersampled) supersampled="$2"; shift 2 ;;
+    -h|--help) sed -n '2,30p' "$0"; exit 0 ;;
     *) echo "pixel_error_curve: unknown option $1" >&2; exit 2 ;;
   esac
 done
@@ -138,6 +142,7 @@ if [[ -n "$pair" ]]; then
   [[ " $errors " == *" 1 "* ]] || { echo "pixel_error_curve: --pair needs T = 1 among --errors" >&2; exit 2; }
   args+=(--pair "$t1:$pair")
 fi
+[[ -z "$supersampled" ]] || args+=(--supersampled "$supersampled")
 [[ -z "$tsv" ]] || args+=(--tsv "$tsv")
 [[ -z "$json" ]] || args+=(--json "$json")
 [[ -z "$markdown" ]] || args+=(--markdown "$markdown")
