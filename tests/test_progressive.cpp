@@ -177,6 +177,32 @@ void reference_fill(const SampleBuffer& buf, std::vector<Rgb>& img, std::vector<
   }
 }
 
+// The sky marks of set_background(): a pixel filled with the sky colour is skipped when filled
+// again, but a pixel something else wrote since (geometry, another colour) is written again, and
+// a new sky colour forgets every mark.
+TEST(SampleBuffer, SkyMarksNeverHideAPixelWrittenSince) {
+  SampleBuffer b;
+  b.resize(4, 1);
+  const Rgb sky{0.2f, 0.3f, 0.4f}, other{1.0f, 0.0f, 0.0f};
+  b.set_sky(sky);
+  for (size_t i = 0; i < 4; ++i) b.set_background(i, sky);
+  b.set(1, 7, 2.5, Rgb{0.5f, 0.5f, 0.5f});  // geometry over the sky
+  b.set_background(2, other);               // not the sky colour
+  for (size_t i = 0; i < 4; ++i) b.set_background(i, sky);
+  for (size_t i = 0; i < 4; ++i) {
+    SCOPED_TRACE(i);
+    EXPECT_EQ(b.prim(i), kNoPrim);
+    EXPECT_EQ(b.t(i), kInfinity);
+    EXPECT_EQ(b.color(i).r, sky.r);
+    EXPECT_EQ(b.color(i).b, sky.b);
+  }
+  // Another sky: the old marks say nothing about it.
+  b.set_sky(other);
+  b.set_background(3, other);
+  EXPECT_EQ(b.color(3).r, other.r);
+  EXPECT_EQ(b.color(0).r, sky.r);  // untouched
+}
+
 TEST(Reconstruct, ParallelTilesEqualTheSequentialRecursion) {
   std::mt19937_64 rng(5);
   for (const auto& [w, h] : std::vector<std::pair<int, int>>{{640, 480}, {97, 301}, {1, 50}, {3, 2}, {257, 129}}) {

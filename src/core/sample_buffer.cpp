@@ -18,6 +18,7 @@ void SampleBuffer::resize(int width, int height) {
   t_.assign(n, kInfinity);
   color_.assign(n, Rgb{});
   image_.assign(n, Rgb{});
+  sky_.marks.assign(n, 0);
   frame_ = 1;
 }
 

@@ -67,6 +67,7 @@ void FrustumCaster::begin(const View& view, SampleBuffer& buffer, CellMarks& mar
   shadows_ = shadows;
   buffer.resize(view.width, view.height);
   buffer.begin_frame();
+  buffer.set_sky(shader_.background());
   marks.resize(tree_.cells().size());
   marks.begin_frame();
   samples_done_ = 0;
