@@ -45,7 +45,8 @@
 //            its proxy (or, a leaf, by its cell); otherwise its children are considered. A child
 //            can be drawn when it is a resident, empty or failed cell, or a node with a resident
 //            proxy, or a node all of whose children can. The root's proxy is always resident, so
-//            the cut never leaves a hole and no ray of such a frame parks. After the frame
+//            the cut never leaves a hole and no ray of such a frame parks (the top levels below
+//            it are read at the opening too: preload_top()). After the frame
 //            (end_frame()), each cut node its rays entered whose bound projects to T or more asks
 //            for what lies below it, down to where the bounds project below T (a few levels at
 //            most): proxies, then pages, largest projected error first. Nothing is asked for
@@ -218,6 +219,8 @@ class PagedWorld final : public CellGate {
   // Times a chosen cut differed from the one before: an image drawn with proxies is out of date
   // once this grows.
   uint64_t cut_changes() const { return cut_changes_; }
+  // Proxies installed now (the root's and the top levels' from the store's opening on).
+  size_t proxies_resident() const { return proxies_resident_; }
   // Cells grafted and proxies installed so far (it only grows).
   uint64_t installs() const { return installs_; }
   // Proxies and pages the cut asked for that are not in yet.
@@ -344,6 +347,9 @@ class PagedWorld final : public CellGate {
   bool choose_cut();
   // The waited cut's proxies that are not resident: read and installed now.
   void load_now(const std::vector<uint32_t>& nodes);
+  // At open: the proxies of the top levels below the root, whole levels, at most
+  // kPreloadTriangles triangles and 1/kPreloadBudgetShare of the decoded budget.
+  void preload_top();
   // After a pegged frame: the cut nodes its rays entered (note_drawn()) ask for what lies below.
   void request_refinements();
   // Records which linked nodes the image's rays reached (end_frame(): drawn_nodes_); returns the
@@ -360,6 +366,8 @@ class PagedWorld final : public CellGate {
   static constexpr size_t kMaxProxyRequests = 512, kMaxPageRequests = 256;
   // Below a cut node its rays entered, what is asked for goes at most this many levels down.
   static constexpr int kRequestLevels = 4;
+  static constexpr uint64_t kPreloadTriangles = 1u << 17, kPreloadBudgetShare = 32;
+  static constexpr uint64_t kDecodedBytesPerProxyTriangle = 256;  // triangle, reference, tree: rough
   // The cut stops asking for more once what it draws takes this share of the decoded budget.
   static constexpr double kCutFullShare = 0.75;
 

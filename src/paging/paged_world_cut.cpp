@@ -34,8 +34,65 @@ void PagedWorld::open_proxies() {
                                               : page_cells_under_[n + 1] + page_cells_under_[nodes[n].child];
   }
   stand_in_prim_.reserve(scene_.prims.capacity());
-  // The root's proxy is there from the first frame (the cut always exists): read now.
+  // The root's proxy is there from the first frame (the cut always exists), and the top of the
+  // tree breadth first below it, within a small share of the budget: the first frames draw
+  // nodes a few levels down wherever the eye looks, instead of the root's blob.
   if (model_.proxy(0) != nullptr) load_now({0});
+  preload_top();
+}
+
+void PagedWorld::preload_top() {
+  const auto& nodes = model_.nodes();
+  const uint64_t cap = std::min<uint64_t>(kPreloadTriangles, lru_.budget() / kPreloadBudgetShare / kDecodedBytesPerProxyTriangle);
+  std::vector<uint32_t> take;
+  uint64_t triangles = 0;
+  std::vector<uint32_t> level{0}, next;
+  while (!level.empty()) {
+    next.clear();
+    uint64_t level_triangles = 0;
+    for (const uint32_t n : level) {
+      for (const uint32_t c : {n + 1, nodes[n].child}) {
+        if (nodes[c].is_leaf() || model_.proxy(c) == nullptr) continue;
+        next.push_back(c);
+        level_triangles += model_.proxy(c)->triangles;
+      }
+    }
+    if (next.empty() || triangles + level_triangles > cap) break;  // whole levels only
+    triangles += level_triangles;
+    take.insert(take.end(), next.begin(), next.end());
+    level.swap(next);
+  }
+  if (take.empty()) return;
+  // Read and decoded in parallel (each page read by the thread that decodes it), installed in
+  // order.
+  {
+    std::lock_guard<std::mutex> lock(wanted_mutex_);
+    for (const uint32_t n : take) cache_->request(model_.proxy(n)->page);
+  }
+  std::vector<ProxyDecoded> decoded(take.size());
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, take.size(), 4), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i < r.end(); ++i) {
+      ProxyDecoded& p = decoded[i];
+      auto pin = cache_->pin(model_.proxy(take[i])->page);
+      if (!pin) {
+        p.node = take[i];
+        p.page_failed = true;
+        p.status = pin.status();
+        continue;
+      }
+      // Held while decode_proxy pins it again (and so cannot miss it).
+      if (!decode_proxy(take[i], p)) {
+        p.node = take[i];
+        p.page_failed = true;
+        p.status = Status::io_error(fmt::format("proxy page {} was evicted while the store opened", model_.proxy(take[i])->page));
+      }
+    }
+  });
+  for (ProxyDecoded& p : decoded) {
+    proxy_[p.node].requested = true;  // install_proxy takes only what was asked for
+    install_proxy(p);
+  }
+  counters_.proxies_loaded = 0;  // opening the store, not a frame
 }
 
 double PagedWorld::pixels_of(uint32_t node) const {
