@@ -78,6 +78,9 @@ class SampleBuffer {
     sky_.marks[i] = sky ? 1 : 0;
   }
 
+  // Pixel i holds the sky colour and no primitive (set_background() with set_sky()'s colour, and
+  // nothing written since): a pass over the frame's primitives may skip it after one byte.
+  bool sky(size_t i) const { return sky_.marks[i] != 0; }
   // Values of confirmed pixels.
   uint32_t prim(size_t i) const { return prim_[i]; }
   double t(size_t i) const { return t_[i]; }

@@ -219,6 +219,8 @@ class PagedWorld final : public CellGate {
   // Times a chosen cut differed from the one before: an image drawn with proxies is out of date
   // once this grows.
   uint64_t cut_changes() const { return cut_changes_; }
+  // Some cell the cut asked for has its page in, not yet decoded.
+  bool cells_ready() const;
   // Proxies installed now (the root's and the top levels' from the store's opening on).
   size_t proxies_resident() const { return proxies_resident_; }
   // Cells grafted and proxies installed so far (it only grows).
@@ -296,8 +298,6 @@ class PagedWorld final : public CellGate {
   // page carries none built with proxy_build_options (any thread: reads the model only).
   // False when the page left the cache meanwhile.
   bool decode_proxy(uint32_t node, ProxyDecoded& out) const;
-  // Some cell the cut asked for has its page in, not yet decoded.
-  bool cells_ready() const;
   // Whether the frame's threads decode what arrived (in sync, within its deadline): in frames
   // that wait for their pages, and before a pegged cut's rays (its decoder thread pauses).
   bool frame_decodes() const;

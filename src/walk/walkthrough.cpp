@@ -418,8 +418,11 @@ double Walkthrough::use_slack(const FramePlan& plan) {
   while (Clock::now() < deadline && world_->requests_outstanding() > 0) {
     const uint64_t before = world_->installs();
     changed = world_->sync(deadline) || changed;
+    if (world_->installs() != before) continue;
+    // Pages in and nothing placed: what is left does not fit beside what the cut holds.
+    if (world_->cells_ready()) break;
     // Nothing arrived to decode: wait a little for the reads asked for.
-    if (world_->installs() == before) std::this_thread::sleep_for(std::chrono::microseconds(300));
+    std::this_thread::sleep_for(std::chrono::microseconds(300));
   }
   if (changed) caster_->tree_changed();
   return ms_since(start);
@@ -544,7 +547,7 @@ void Walkthrough::report_image(FrameReport& r, const Counters& counters) const {
         tbb::blocked_range<size_t>(0, buffer_.size(), size_t{1} << 14), uint64_t{0},
         [&](const tbb::blocked_range<size_t>& range, uint64_t n) {
           for (size_t i = range.begin(); i < range.end(); ++i) {
-            if (buffer_.confirmed(i) && world_->stand_in_prim(buffer_.prim(i))) ++n;
+            if (!buffer_.sky(i) && buffer_.confirmed(i) && world_->stand_in_prim(buffer_.prim(i))) ++n;
           }
           return n;
         },
