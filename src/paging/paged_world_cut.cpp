@@ -51,6 +51,7 @@ void PagedWorld::preload_top() {
     next.clear();
     uint64_t level_triangles = 0;
     for (const uint32_t n : level) {
+      if (nodes[n].is_leaf()) continue;  // a root that is a leaf (a store of one cell)
       for (const uint32_t c : {n + 1, nodes[n].child}) {
         if (nodes[c].is_leaf() || model_.proxy(c) == nullptr) continue;
         next.push_back(c);
