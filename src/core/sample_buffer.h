@@ -19,6 +19,7 @@ inline constexpr uint32_t kNoPrim = 0xFFFFFFFFu;
 
 struct Rgb {
   float r = 0.0f, g = 0.0f, b = 0.0f;
+  bool operator==(const Rgb&) const = default;
 };
 
 class SampleBuffer {
@@ -58,7 +59,7 @@ class SampleBuffer {
   // The colour set_background() is mostly called with (the scene's background). Not while
   // workers write.
   void set_sky(Rgb bg) {
-    if (bg.r == sky_.colour.r && bg.g == sky_.colour.g && bg.b == sky_.colour.b) return;
+    if (bg == sky_.colour) return;
     sky_.colour = bg;
     std::fill(sky_.marks.begin(), sky_.marks.end(), uint8_t{0});
   }
@@ -67,10 +68,9 @@ class SampleBuffer {
   // colour: reading the pixel's 24 bytes of values made filling the sky of a 1280x720 terrain
   // orbit (nine tenths of the pixels) a quarter of its frame time, bound by memory.
   void set_background(size_t i, Rgb bg) {
-    const bool sky = bg.r == sky_.colour.r && bg.g == sky_.colour.g && bg.b == sky_.colour.b;
+    const bool sky = bg == sky_.colour;
     if (sky && sky_.marks[i] != 0) return;
-    const Rgb& c = color_[i];
-    if (!(prim_[i] == kNoPrim && c.r == bg.r && c.g == bg.g && c.b == bg.b && t_[i] == kInfinity)) {
+    if (!(prim_[i] == kNoPrim && color_[i] == bg && t_[i] == kInfinity)) {
       prim_[i] = kNoPrim;
       t_[i] = kInfinity;
       color_[i] = bg;

@@ -63,36 +63,7 @@ void PagedWorld::preload_top() {
     take.insert(take.end(), next.begin(), next.end());
     level.swap(next);
   }
-  if (take.empty()) return;
-  // Read and decoded in parallel (each page read by the thread that decodes it), installed in
-  // order.
-  {
-    std::lock_guard<std::mutex> lock(wanted_mutex_);
-    for (const uint32_t n : take) cache_->request(model_.proxy(n)->page);
-  }
-  std::vector<ProxyDecoded> decoded(take.size());
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, take.size(), 4), [&](const tbb::blocked_range<size_t>& r) {
-    for (size_t i = r.begin(); i < r.end(); ++i) {
-      ProxyDecoded& p = decoded[i];
-      auto pin = cache_->pin(model_.proxy(take[i])->page);
-      if (!pin) {
-        p.node = take[i];
-        p.page_failed = true;
-        p.status = pin.status();
-        continue;
-      }
-      // Held while decode_proxy pins it again (and so cannot miss it).
-      if (!decode_proxy(take[i], p)) {
-        p.node = take[i];
-        p.page_failed = true;
-        p.status = Status::io_error(fmt::format("proxy page {} was evicted while the store opened", model_.proxy(take[i])->page));
-      }
-    }
-  });
-  for (ProxyDecoded& p : decoded) {
-    proxy_[p.node].requested = true;  // install_proxy takes only what was asked for
-    install_proxy(p);
-  }
+  load_now(take);
   counters_.proxies_loaded = 0;  // opening the store, not a frame
 }
 
@@ -278,23 +249,32 @@ void PagedWorld::load_now(const std::vector<uint32_t>& nodes) {
       cache_->request(model_.proxy(n)->page);
     }
   }
+  std::vector<uint32_t> todo;
   for (const uint32_t n : nodes) {
     if (!proxy_[n].requested || proxy_[n].graft >= 0) continue;
-    {
-      std::lock_guard<std::mutex> lock(wanted_mutex_);
-      std::erase(proxy_wanted_, n);  // decoded here, not by the decoder
+    todo.push_back(n);
+    std::lock_guard<std::mutex> lock(wanted_mutex_);
+    std::erase(proxy_wanted_, n);  // decoded here, not by the decoder
+  }
+  // Read and decoded in parallel (each page read by the thread that decodes it), installed in
+  // the order given.
+  std::vector<ProxyDecoded> decoded(todo.size());
+  std::vector<uint8_t> ok(todo.size(), 1);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, todo.size(), 4), [&](const tbb::blocked_range<size_t>& r) {
+    for (size_t i = r.begin(); i < r.end(); ++i) {
+      // pin() waits for the page (or reads it itself); the pin keeps it until decoded.
+      auto pin = cache_->pin(model_.proxy(todo[i])->page);
+      if (!pin) {
+        decoded[i].node = todo[i];
+        decoded[i].page_failed = true;
+        decoded[i].status = pin.status();
+      } else if (!decode_proxy(todo[i], decoded[i])) {
+        ok[i] = 0;  // cannot happen while pinned
+      }
     }
-    // pin() waits for the page (or reads it itself); the pin keeps it until decoded.
-    auto pin = cache_->pin(model_.proxy(n)->page);
-    ProxyDecoded p;
-    if (!pin) {
-      p.node = n;
-      p.page_failed = true;
-      p.status = pin.status();
-    } else if (!decode_proxy(n, p)) {
-      continue;  // cannot happen while pinned
-    }
-    install_proxy(p);
+  });
+  for (size_t i = 0; i < todo.size(); ++i) {
+    if (ok[i]) install_proxy(decoded[i]);
   }
 }
 
