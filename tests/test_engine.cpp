@@ -2,6 +2,7 @@
 // hard cases: eye on split planes and cell corners, axis-parallel views, extreme field of view,
 // far-from-origin coordinates, one-primitive cells, closed meshes that must not leak.
 #include "src/core/tessellate.h"
+#include "src/engine/packet.h"
 #include "src/io/load_scene.h"
 #include "tests/engine_util.h"
 
@@ -265,6 +266,100 @@ TEST(EngineHardCases, PacketsFilterMostTestsAndWalkMixedSigns) {
   EXPECT_GT(d.rays_walked, 0u);
   EXPECT_GT(d.packet_rays, 0u);
   expect_matches_brute(scene, tree, down, "packets looking down -z");
+}
+
+// The ids of a view's packets traced without a leaf layout (as the paged walk traces them: the
+// edge filter per reference); blocks whose lanes mix signs are cast ray by ray.
+std::vector<uint32_t> packet_ids_without_layout(const Scene& scene, const KdTree& tree, const View& view) {
+  std::vector<uint32_t> ids(view.pixels(), kNoPrim);
+  PacketTracer tracer(scene, tree);
+  Counters counters;
+  for (int by = 0; by < view.height; by += 4) {
+    for (int bx = 0; bx < view.width; bx += 4) {
+      RayPacket packet;
+      int px[kPacketRays], py[kPacketRays];
+      for (int y = by; y < std::min(by + 4, view.height); ++y) {
+        for (int x = bx; x < std::min(bx + 4, view.width); ++x) {
+          const Ray ray = view.ray(x, y);
+          px[packet.count] = x;
+          py[packet.count] = y;
+          packet.add(ray, view.tmin(ray));
+        }
+      }
+      PacketResult result;
+      const bool traced = tracer.trace(packet, result, counters);
+      for (int l = 0; l < packet.count; ++l) {
+        const RayHit hit =
+            traced ? result.hit[l] : cast_ray(scene, tree, packet.rays[l], packet.tmin[l], counters, nullptr);
+        ids[size_t(py[l]) * size_t(view.width) + size_t(px[l])] = hit.hit() ? scene.prims[hit.prim].source : kNoPrim;
+      }
+    }
+  }
+  return ids;
+}
+
+// Every instruction set the packet kernel is compiled for that this CPU runs gives the ids of
+// brute force: with the leaf layout (in-memory frames: packets, frustum casting) and without it
+// (the paged walk), on tessellated rings, and on triangles 1e6 from the origin seen from a
+// grazing eye.
+TEST(EngineHardCases, EveryPacketKernelTheCpuRunsMatchesBruteForce) {
+  RecordProperty("methods", "packets and frustum casting under each packet kernel (baseline, AVX2, AVX-512): ids against brute force");
+  struct Case {
+    std::string name;
+    Scene scene;
+    KdTree tree;
+    View view;
+    std::vector<uint32_t> ref;
+    std::vector<uint8_t> tie;
+  };
+  std::vector<Case> cases;
+  {
+    Scene rings = tessellated_spd("rings", 6);
+    ASSERT_GT(rings.size(), 0u);
+    const Camera cam = rings.camera ? *rings.camera : automatic_camera(rings.bounds());
+    KdTree tree = KdTree::build(rings, {});
+    cases.push_back({"rings", std::move(rings), std::move(tree), View(cam, 40, 40), {}, {}});
+  }
+  {
+    std::mt19937_64 rng(23);
+    Scene far;
+    far.materials.push_back({});
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    const Vec3 offset(1e6, -1e6, 1e6);
+    for (uint32_t i = 0; i < 400; ++i) {
+      const Vec3 c = offset + Vec3(u(rng), u(rng), 0.05 * u(rng));
+      far.add_triangle({c, c + 0.2 * Vec3(u(rng), u(rng), 0.1 * u(rng)), c + 0.2 * Vec3(u(rng), u(rng), 0.1 * u(rng))},
+                       i, 0);
+    }
+    const Vec3 centre = far.bounds().center();
+    const Camera grazing = camera_at(centre + Vec3(-2.5, -0.3, 0.08), centre + Vec3(0.0, 0.0, -0.02), 50.0);
+    KdTree tree = KdTree::build(far, {});
+    cases.push_back({"far and grazing", std::move(far), std::move(tree), View(grazing, 49, 37), {}, {}});
+  }
+  for (Case& c : cases) brute_reference(c.scene, c.view, c.ref, c.tie);
+
+  const PacketIsa best = packet_isa();
+  int kernels = 0;
+  for (const PacketIsa isa : {PacketIsa::Baseline, PacketIsa::Avx2, PacketIsa::Avx512}) {
+    if (!use_packet_isa(isa)) {
+      EXPECT_FALSE(packet_isa_supported(isa));
+      continue;
+    }
+    ++kernels;
+    ASSERT_EQ(packet_isa(), isa);
+    for (const Case& c : cases) {
+      const std::string what = c.name + ", kernel " + std::to_string(int(isa));
+      for (const Method m : {Method::Packet, Method::Frustum}) {
+        const Comparison r = compare_ids(c.ref, c.tie, render_ids(c.scene, c.tree, c.view, m), c.view.width);
+        EXPECT_EQ(r.mismatches, 0u) << what << " " << method_name(m) << ": " << r.first_mismatch;
+      }
+      const Comparison r = compare_ids(c.ref, c.tie, packet_ids_without_layout(c.scene, c.tree, c.view), c.view.width);
+      EXPECT_EQ(r.mismatches, 0u) << what << " without a layout: " << r.first_mismatch;
+    }
+  }
+  EXPECT_TRUE(use_packet_isa(best));
+  EXPECT_GE(kernels, 1);  // the baseline runs everywhere
+  EXPECT_TRUE(packet_isa_supported(PacketIsa::Baseline));
 }
 
 // A few curved primitives among many triangles: leaf frusta still go as packets (which test the

@@ -56,6 +56,15 @@ struct PacketResult {
 
 struct PacketStackEntry;
 
+// The instruction sets the packet kernel is compiled for; the best one the CPU runs is used
+// unless use_packet_isa() says otherwise. Every one gives the same hits (tests run each one the
+// CPU has against brute force).
+enum class PacketIsa { Baseline, Avx2, Avx512 };
+bool packet_isa_supported(PacketIsa isa);
+// The kernel traces use from now on (all threads); false, changing nothing, when the CPU lacks it.
+bool use_packet_isa(PacketIsa isa);
+PacketIsa packet_isa();
+
 // The tree's leaves laid out for packets: per cell a header (a base point, its blocks of
 // triangles and its other primitives) and its triangles in blocks of kBlock, structure of
 // arrays: corners in float relative to the base, each triangle with a bound on that rounding,
