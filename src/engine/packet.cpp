@@ -28,10 +28,10 @@ struct Lanes {
 };
 
 // The helpers below pass vectors by value and are always inlined: no call crosses the ABI GCC
-// warns about (-Wpsabi: AVX vectors returned without AVX enabled, as in the baseline clone).
+// warns about (-Wpsabi: AVX vectors returned without AVX enabled, as in the baseline copy).
 #pragma GCC diagnostic ignored "-Wpsabi"
 
-// Four lanes as one vector (GCC's vector extension: AVX registers in the AVX clones, SSE2
+// Four lanes as one vector (GCC's vector extension: AVX registers in the AVX copies, SSE2
 // pairs in the baseline), for the traversal's per-node step; a comparison gives 0 or -1 per
 // lane.
 using V4 = double __attribute__((vector_size(32)));
