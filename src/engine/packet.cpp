@@ -185,9 +185,9 @@ TraceLanes kernel_for(PacketIsa isa) {
 }
 
 PacketIsa best_isa() {
-  __builtin_cpu_init();
-  if (__builtin_cpu_supports("avx512f")) return PacketIsa::Avx512;
-  if (__builtin_cpu_supports("avx2")) return PacketIsa::Avx2;
+  for (const PacketIsa isa : {PacketIsa::Avx512, PacketIsa::Avx2}) {
+    if (packet_isa_supported(isa)) return isa;
+  }
   return PacketIsa::Baseline;
 }
 
