@@ -233,6 +233,7 @@ void FrustumCaster::walk_anchors(const OutOfBudget& out_of_budget) {
         pixel.y0 = pixel.y1 = int32_t(anchors_[k] / W);
         pixel.cell = eye_cell;
         resolve_by_walking(pixel, w, false);
+        flush_samples(w);
       }
     });
   });
@@ -392,7 +393,10 @@ bool FrustumCaster::run(const FrameBudget& budget, Counters& counters) {
     if (count_samples_ && samples_done_.load(std::memory_order_relaxed) >= budget.samples) return true;
     return budget.ms > 0.0 && std::chrono::steady_clock::now() >= deadline;
   };
-  for (auto& w : workers_) w->counters = Counters{};
+  for (auto& w : workers_) {
+    w->counters = Counters{};
+    w->unflushed = 0;
+  }
   // The shared sample count is only kept while a sample budget needs it (one contended
   // atomic per pixel otherwise). A later run with a sample budget starts counting from there.
   count_samples_ = budget.samples > 0;
@@ -420,6 +424,7 @@ bool FrustumCaster::run(const FrameBudget& budget, Counters& counters) {
             w.remaining.push_back(level[i]);
           } else {
             process(level[i], w);
+            flush_samples(w);
           }
         }
       });
@@ -513,7 +518,14 @@ void FrustumCaster::confirm(const Job& job, int x, int y, uint32_t prim, double 
   buffer_->set(i, prim, t, color);
   ++w.counters.samples;
   ++w.counters.rays;
-  if (count_samples_) samples_done_.fetch_add(1, std::memory_order_relaxed);
+  ++w.unflushed;
+}
+
+// Adds the worker's samples since the last call to the shared count a sample budget reads
+// (between jobs, where the budget is checked).
+void FrustumCaster::flush_samples(Worker& w) {
+  if (count_samples_ && w.unflushed > 0) samples_done_.fetch_add(w.unflushed, std::memory_order_relaxed);
+  w.unflushed = 0;
 }
 
 }  // namespace frontier

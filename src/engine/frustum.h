@@ -212,6 +212,7 @@ class FrustumCaster {
   void reopen_unshaded();
   bool claim(const Job& job, int x, int y, size_t i) const;
   void confirm(const Job& job, int x, int y, uint32_t prim, double t, const Ray& ray, Worker& w);
+  void flush_samples(Worker& w);
   void finish_level();
   static void order_level(std::vector<Job>& level, bool budgeted);
   Worker& current_worker();

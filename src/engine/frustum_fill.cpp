@@ -44,7 +44,7 @@ void FrustumCaster::fill_background(const Job& job, Worker& w) {
   }
   w.counters.samples += n;
   w.counters.rays += n;
-  if (count_samples_ && n > 0) samples_done_.fetch_add(n, std::memory_order_relaxed);
+  w.unflushed += n;
 }
 
 // Corner rays against the impinging elements (a corner hit inside this cell is final), then
