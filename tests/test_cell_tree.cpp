@@ -241,6 +241,7 @@ TEST(StoreCellTree, StoresWithoutTreesAndOtherOptionsRenderTheSameIds) {
     o.threads = 2;
     o.sync_paging = true;
     o.cell_prims = variants[v].cell_prims;
+    o.cell_build_from_store = false;  // the options above, also for the store with trees
     auto walk = Walkthrough::open(variants[v].store, o);
     ASSERT_TRUE(walk.is_ok()) << walk.status().to_string();
     uint64_t paged = 0;

@@ -230,9 +230,32 @@ TEST(Walkthrough, SampleFloorHoldsUnderATightFrameTimePeg) {
   EXPECT_GT(with, without);
 }
 
+// Whether pixel i's ids `a` and `b` (sources) are a tie: each has a resident primitive hit by
+// the pixel's ray at the nearest hit of any resident primitive (coplanar copies of a wall in two
+// cells, or two walls meeting in the plane: which one a walk reports depends on the leaves the
+// ray meets them in, as for brute force with another order).
+bool tie_at_pixel(const Walkthrough& walk, size_t i, uint32_t a, uint32_t b) {
+  if (a == kNoPrim || b == kNoPrim) return false;
+  const Scene& scene = walk.world().scene();
+  const View& view = walk.view();
+  const Ray ray = view.ray(int(i % size_t(view.width)), int(i / size_t(view.width)));
+  const double tmin = view.tmin(ray);
+  double nearest = kInfinity, ta = kInfinity, tb = kInfinity;
+  for (uint32_t p = 0; p < scene.size(); ++p) {
+    double t = 0.0;
+    if (!scene.intersect(p, ray, tmin, kInfinity, t)) continue;
+    nearest = std::min(nearest, t);
+    if (scene.prims[p].source == a) ta = std::min(ta, t);
+    if (scene.prims[p].source == b) tb = std::min(tb, t);
+  }
+  // Copies of one triangle decoded in two cells may differ in the last bits of t.
+  const double slack = 1e-12 * std::max(1.0, nearest);
+  return ta <= nearest + slack && tb <= nearest + slack;
+}
+
 // The building walk with a cache far smaller than the model: resident bytes never exceed the
 // budget, cells are evicted and compacted away, every frame is still exact (ids equal the
-// oracle's exact two-level walk), and the touched cells stay close to the oracle's.
+// oracle's exact two-level walk, but for ties), and the touched cells stay close to the oracle's.
 TEST(Walkthrough, SmallCacheStaysWithinBudgetAndExactAlongTheBuildingWalk) {
   const BuildingWalk& b = building_walk();
   auto model = StoreModel::open(b.store);
@@ -241,7 +264,7 @@ TEST(Walkthrough, SmallCacheStaysWithinBudgetAndExactAlongTheBuildingWalk) {
   for (const StoreCell& c : (*model)->cells()) {
     if (c.page != StoreCell::kNoPage) page_bytes += (*model)->reader().page_handle(c.page).size;
   }
-  WalkOptions o = sync_options(96, 8u << 20);
+  WalkOptions o = sync_options(96, 6u << 20);  // in-cell trees of traversal cost 8: 8 MiB no longer evicts
   o.oracle = true;
   auto walk = Walkthrough::open(b.store, o);
   ASSERT_TRUE(walk.is_ok());
@@ -260,7 +283,16 @@ TEST(Walkthrough, SmallCacheStaysWithinBudgetAndExactAlongTheBuildingWalk) {
     const std::set<uint32_t> t(touched.begin(), touched.end());
     for (uint32_t c : (*walk)->last_oracle()->cells) EXPECT_TRUE(t.count(c)) << "oracle cell " << c << " untouched";
     const auto ids = (*walk)->ids();
-    EXPECT_EQ(ids, (*walk)->last_oracle()->ids) << "frame " << r.frame;
+    const auto& oracle_ids = (*walk)->last_oracle()->ids;
+    ASSERT_EQ(ids.size(), oracle_ids.size());
+    size_t ties = 0;
+    for (size_t i = 0; i < ids.size(); ++i) {
+      if (ids[i] == oracle_ids[i]) continue;
+      EXPECT_TRUE(tie_at_pixel(**walk, i, ids[i], oracle_ids[i]))
+          << "frame " << r.frame << " pixel " << i << ": " << ids[i] << " against the oracle's " << oracle_ids[i];
+      ++ties;
+    }
+    EXPECT_LE(ties, ids.size() / 100) << "frame " << r.frame << ": ties are rare";
     evicted += r.cells_evicted;
   }
   EXPECT_GT(evicted, 0u) << "the budget was meant to force eviction";

@@ -116,7 +116,10 @@ std::string walk_options(ViewerOptions& o, WalkOptions& wo) {
   wo.pixel_error = o.pixel_error >= 0.0 ? o.pixel_error : (o.sync_paging ? 0.0 : 1.0);
   wo.oracle = o.oracle;
   wo.shadows = !o.no_shadows;
-  if (o.cell_prims_given) wo.cell_prims = o.cell_prims;
+  if (o.cell_prims_given) {
+    wo.cell_prims = o.cell_prims;
+    wo.cell_build_from_store = false;
+  }
   wo.leaf_pixels = o.leaf_pixels;
   wo.reconstruct_each_frame = !o.headless;  // headless: only for the frames written as PNG
   wo.visibility = *parse_visibility(o.visibility_text);

@@ -94,7 +94,7 @@ void add_method_options(CLI::App& app, ViewerOptions& o) {
       ->check(CLI::Range(3, 1024));
   app.add_flag("--back-sample-culling", o.back_sample_culling,
                "imr: discard ray samples facing away from the eye (the inside of open or clipped surfaces)");
-  app.add_option("--cell-prims", o.cell_prims, "largest k-d cell kept when it could split (default 8; stores, inside a page: 16)")
+  app.add_option("--cell-prims", o.cell_prims, "largest k-d cell kept when it could split (default 8; stores, inside a page: as the store's in-cell trees were built, else 16; given for a store, its pages' trees are rebuilt with it at page-in)")
       ->check(CLI::Range(1u, 1000000u));
   app.add_option("--min-cell-prims", o.min_cell_prims, "model file: cells at or below this size never split")
       ->check(CLI::Range(0u, 1000000u));

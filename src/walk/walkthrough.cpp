@@ -133,6 +133,10 @@ Result<std::unique_ptr<Walkthrough>> Walkthrough::open(const std::string& store_
   PagedWorldOptions po;
   po.budget_bytes = options.cache_bytes;
   po.cell_build = page_refine_options(options);
+  if (options.cell_build_from_store && w->model_->info().cell_tree) {
+    po.cell_build = *w->model_->info().cell_tree;
+    po.cell_build.root.reset();
+  }
   w->world_ = std::make_unique<PagedWorld>(*w->model_, po);
   w->shader_ = std::make_unique<Shader>(w->world_->scene(), w->world_->tree());
   w->caster_ = std::make_unique<FrustumCaster>(w->world_->scene(), w->world_->tree(), *w->shader_, options.threads);

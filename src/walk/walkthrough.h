@@ -70,13 +70,20 @@ struct WalkOptions {
   // show a frame that is mostly reconstruction, or none). 0: pure frame-time pegging
   // (paper §5.5). The report's floor_ms says how long a frame ran past its peg for it.
   double min_sampled = 0.5;
-  // How a paged-in store cell is refined (page-in time is frame time). Measured on the 100 M
-  // triangle building walk (tests/bench/bench_walk.sh): 16 / 4.0 / 0.75 build a cell in
-  // 1.3 ms instead of 2.9 ms (8 / 2.0 / 1.0, the in-memory engine's), with 4.6 instead of 8.1
-  // references per primitive (half the memory) and more samples per 33 ms frame.
+  // How a paged-in store cell is refined (page-in time is frame time), and how frontier-build
+  // builds the in-cell trees its pages carry. Measured on the 100 M triangle building walk
+  // (tests/bench/bench_walk.sh): 16 / 4.0 / 0.75 build a cell in 1.3 ms instead of 2.9 ms
+  // (8 / 2.0 / 1.0, the in-memory engine's), with 4.6 instead of 8.1 references per primitive
+  // (half the memory) and more samples per 33 ms frame. A traversal cost of 8 instead of 4
+  // (REPORT.md section 9): 2.7x fewer nodes and 1.7x fewer references on a 2 M building, packets
+  // 0.8x the time on a 2 M terrain fly-over, as fast on the building.
   uint32_t cell_prims = 16;
-  double cell_traversal_cost = 4.0;
+  double cell_traversal_cost = 8.0;
   double cell_split_share = 0.75;
+  // A store whose pages carry in-cell trees is refined with the options it records (its trees
+  // are used as stored, whatever the defaults above were when it was built); false: with the
+  // options above (a tree built otherwise is then rebuilt at page-in).
+  bool cell_build_from_store = true;
   int leaf_pixels = FrustumCaster::kDefaultLeafPixels;
   // Reconstruct the displayed image at the end of every frame (inside the frame's time; a
   // window needs it). Off, image() reconstructs on demand: headless walks pay for it only for

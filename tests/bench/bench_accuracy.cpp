@@ -755,6 +755,7 @@ int run_refine(const Options& o, const std::vector<Camera>& path, JsonLines& jso
   for (const uint32_t prims : o.refine_prims) {
     WalkOptions options = walk_options(o, o.walk_cache);
     options.cell_prims = prims;
+    options.cell_build_from_store = false;
     auto s = walk(*store, path, o.walk_frames, o.walk_repeats, options);
     if (!s) return fail(s.status());
     print_walk_row(std::to_string(prims), *s);
