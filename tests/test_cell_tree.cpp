@@ -258,6 +258,30 @@ TEST(StoreCellTree, StoresWithoutTreesAndOtherOptionsRenderTheSameIds) {
   EXPECT_EQ(ids[2], ids[3]) << "other options: both stores rebuild";
 }
 
+// A walk refines a store's pages with the options the store records, also when the viewer's
+// defaults have changed since it was built (its trees are then used as stored, not rebuilt at
+// every page-in); options given for the walk (frontier-view --cell-prims) override them.
+TEST(StoreCellTree, WalksRefineWithTheOptionsTheStoreRecords) {
+  const std::string with = store_of(generated("building", 20000), "options_with_trees", CellCodec::Draco, true);
+  auto model = StoreModel::open(with);
+  ASSERT_TRUE(model.is_ok()) << model.status().to_string();
+  ASSERT_TRUE((*model)->info().cell_tree.has_value());
+  const KdBuildOptions stored = *(*model)->info().cell_tree;
+  WalkOptions o;
+  o.width = o.height = 32;
+  o.threads = 2;
+  o.cell_traversal_cost = stored.traversal_cost / 2.0;  // a viewer whose defaults differ from the builder's
+  auto walk = Walkthrough::open(with, o);
+  ASSERT_TRUE(walk.is_ok()) << walk.status().to_string();
+  EXPECT_TRUE(same_cell_build((*walk)->world().cell_build(), stored));
+  EXPECT_EQ((*walk)->world().cell_build().traversal_cost, stored.traversal_cost);
+  o.cell_build_from_store = false;
+  auto own = Walkthrough::open(with, o);
+  ASSERT_TRUE(own.is_ok()) << own.status().to_string();
+  EXPECT_FALSE(same_cell_build((*own)->world().cell_build(), stored));
+  EXPECT_EQ((*own)->world().cell_build().traversal_cost, o.cell_traversal_cost);
+}
+
 // Damage to a page's tree (past its checksum: the page cache hands decode_page the bytes) is
 // Corruption naming the cell and page, or a tree that still assembles; never a crash.
 TEST(StoreCellTree, DamagedTreesAreCorruptionNamingThePage) {

@@ -133,6 +133,9 @@ class PagedWorld final : public CellGate {
   PagedWorld& operator=(const PagedWorld&) = delete;
 
   const Scene& scene() const { return scene_; }
+  // How paged-in cells are refined (PagedWorldOptions::cell_build): a page's stored tree is used
+  // when it was built with these options.
+  const KdBuildOptions& cell_build() const { return cell_build_; }
   const KdTree& tree() const { return tree_; }
   const StoreModel& model() const { return model_; }
 
