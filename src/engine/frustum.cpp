@@ -395,7 +395,7 @@ bool FrustumCaster::run(const FrameBudget& budget, Counters& counters) {
   };
   for (auto& w : workers_) {
     w->counters = Counters{};
-    w->unflushed = 0;
+    w->flushed = 0;
   }
   // The shared sample count is only kept while a sample budget needs it (one contended
   // atomic per pixel otherwise). A later run with a sample budget starts counting from there.
@@ -518,14 +518,14 @@ void FrustumCaster::confirm(const Job& job, int x, int y, uint32_t prim, double 
   buffer_->set(i, prim, t, color);
   ++w.counters.samples;
   ++w.counters.rays;
-  ++w.unflushed;
 }
 
 // Adds the worker's samples since the last call to the shared count a sample budget reads
 // (between jobs, where the budget is checked).
 void FrustumCaster::flush_samples(Worker& w) {
-  if (count_samples_ && w.unflushed > 0) samples_done_.fetch_add(w.unflushed, std::memory_order_relaxed);
-  w.unflushed = 0;
+  const uint64_t added = w.counters.samples - w.flushed;
+  if (count_samples_ && added > 0) samples_done_.fetch_add(added, std::memory_order_relaxed);
+  w.flushed = w.counters.samples;
 }
 
 }  // namespace frontier

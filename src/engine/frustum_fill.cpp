@@ -44,7 +44,6 @@ void FrustumCaster::fill_background(const Job& job, Worker& w) {
   }
   w.counters.samples += n;
   w.counters.rays += n;
-  w.unflushed += n;
 }
 
 // Corner rays against the impinging elements (a corner hit inside this cell is final), then

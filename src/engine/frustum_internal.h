@@ -156,9 +156,9 @@ struct FrustumCaster::Worker {
   std::vector<int32_t> ahead_cells;                    // and the cells it read them from
   std::unique_ptr<PacketTracer> packets;              // resolve_by_packets' tracer, made on first use
   Counters counters;
-  // Samples confirmed since the last flush_samples(): a sample budget's shared count is kept a
-  // job at a time (one contended atomic per pixel was half of confirm()'s time).
-  uint64_t unflushed = 0;
+  // counters.samples as last added to a sample budget's shared count (flush_samples): the count
+  // is kept a job at a time (one contended atomic per pixel was half of confirm()'s time).
+  uint64_t flushed = 0;
   uint16_t index = 0;  // which arenas_in_ slot its arena_out becomes
 };
 
