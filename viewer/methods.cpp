@@ -37,7 +37,7 @@ MakeResult make_ray_cast(const MethodInput& in) {
   options.shadows = !o.no_shadows;
   options.budget.ms = o.frame_ms;
   options.budget.samples = o.samples;
-  options.leaf_pixels = o.leaf_pixels;
+  options.leaf_pixels = o.leaf_pixels > 0 ? o.leaf_pixels : FrustumCaster::kDefaultLeafPixels;
   return owned(std::make_unique<RayCastFrameRenderer>(in.scene, in.tree, options));
 }
 

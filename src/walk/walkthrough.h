@@ -85,7 +85,12 @@ struct WalkOptions {
   // are used as stored, whatever the defaults above were when it was built); false: with the
   // options above (a tree built otherwise is then rebuilt at page-in).
   bool cell_build_from_store = true;
-  int leaf_pixels = FrustumCaster::kDefaultLeafPixels;
+  // Frusta of at most this many pixels across resolve their pixels as ray packets
+  // (FrustumCaster::set_leaf_pixels). Larger than the in-memory caster's 16: a walk's tree is
+  // the top tree with every page's in-cell tree below it, so frusta of 16 split through many
+  // more cells before they are that small, and a pegged 1280x720 walk at 64 samples more of the
+  // geometry in its 33 ms (tests/bench/REPORT.md section 9, "Leaf frusta of 64 pixels").
+  int leaf_pixels = 64;
   // Reconstruct the displayed image at the end of every frame (inside the frame's time; a
   // window needs it). Off, image() reconstructs on demand: headless walks pay for it only for
   // the frames they write.
