@@ -98,7 +98,7 @@ void add_method_options(CLI::App& app, ViewerOptions& o) {
       ->check(CLI::Range(1u, 1000000u));
   app.add_option("--min-cell-prims", o.min_cell_prims, "model file: cells at or below this size never split")
       ->check(CLI::Range(0u, 1000000u));
-  app.add_option("--leaf-pixels", o.leaf_pixels, "frusta up to N×N pixels resolve their pixels individually: as 4×4 ray packets in scenes of triangles, else walked one by one (paper: 2; default 16 for a model file, 64 for a store's walk)")
+  app.add_option("--leaf-pixels", o.leaf_pixels, "frusta up to N×N pixels resolve their pixels individually: as 4×4 ray packets in scenes of triangles, else walked one by one (paper: 2; default 16 for a model file, a twentieth of the width and at least 16 for a store's walk: 32 at 640, 64 at 1280)")
       ->check(CLI::Range(2, 4096));
   app.add_flag("--no-shadows", o.no_shadows, "skip the deferred shadow effect");
   app.add_option("--visibility", o.visibility_text,

@@ -47,7 +47,7 @@ struct ViewerOptions {
   bool back_sample_culling = false, cull_back_faces = false;
   uint32_t cell_prims = 8, min_cell_prims = 0;
   bool cell_prims_given = false;  // --cell-prims on the command line (stores keep their own default)
-  int leaf_pixels = 0;  // --leaf-pixels; 0: the method's own (frustum casting 16, a store's walk 64)
+  int leaf_pixels = 0;  // --leaf-pixels; 0: the method's own (frustum casting 16, a store's walk by its width)
 };
 
 // Registers every option of frontier-view with `app`, writing into `o`.

@@ -140,7 +140,8 @@ Result<std::unique_ptr<Walkthrough>> Walkthrough::open(const std::string& store_
   w->world_ = std::make_unique<PagedWorld>(*w->model_, po);
   w->shader_ = std::make_unique<Shader>(w->world_->scene(), w->world_->tree());
   w->caster_ = std::make_unique<FrustumCaster>(w->world_->scene(), w->world_->tree(), *w->shader_, options.threads);
-  w->caster_->set_leaf_pixels(options.leaf_pixels);
+  w->caster_->set_leaf_pixels(options.leaf_pixels > 0 ? options.leaf_pixels
+                                                       : WalkOptions::auto_leaf_pixels(options.width));
   w->caster_->set_gate(w->world_.get());
   if (options.oracle) w->oracle_ = std::make_unique<StoreOracle>(*w->model_);
   if (options.visibility != Visibility::kFrustumAdvance) {

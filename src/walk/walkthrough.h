@@ -86,11 +86,15 @@ struct WalkOptions {
   // options above (a tree built otherwise is then rebuilt at page-in).
   bool cell_build_from_store = true;
   // Frusta of at most this many pixels across resolve their pixels as ray packets
-  // (FrustumCaster::set_leaf_pixels). Larger than the in-memory caster's 16: a walk's tree is
-  // the top tree with every page's in-cell tree below it, so frusta of 16 split through many
-  // more cells before they are that small, and a pegged 1280x720 walk at 64 samples more of the
-  // geometry in its 33 ms (tests/bench/REPORT.md section 9, "Leaf frusta of 64 pixels").
-  int leaf_pixels = 64;
+  // (FrustumCaster::set_leaf_pixels); 0: a twentieth of the image's width, at least the
+  // in-memory caster's 16 (32 at 640 pixels, 64 at 1280). A walk's tree is the top tree with
+  // every page's in-cell tree below it, so frusta of 16 split through many cells before they
+  // are that small: pegged 1280x720 walks at 64 sample more of the geometry in their 33 ms, of
+  // terrain, a building's exterior and its interior alike, while a 640x480 interior walk
+  // samples less at 64 than at 16 or 32 (tests/bench/REPORT.md section 9, "Leaf frusta").
+  int leaf_pixels = 0;
+  // The leaf size a walk of `width` pixels uses when leaf_pixels is 0.
+  static int auto_leaf_pixels(int width) { return std::max(FrustumCaster::kDefaultLeafPixels, width / 20); }
   // Reconstruct the displayed image at the end of every frame (inside the frame's time; a
   // window needs it). Off, image() reconstructs on demand: headless walks pay for it only for
   // the frames they write.
