@@ -120,7 +120,7 @@ std::string walk_options(ViewerOptions& o, WalkOptions& wo) {
     wo.cell_prims = o.cell_prims;
     wo.cell_build_from_store = false;
   }
-  if (o.leaf_pixels > 0) wo.leaf_pixels = o.leaf_pixels;
+  wo.leaf_pixels = o.leaf_pixels;  // 0: the walk sizes its leaves by the image width
   wo.reconstruct_each_frame = !o.headless;  // headless: only for the frames written as PNG
   wo.visibility = *parse_visibility(o.visibility_text);
   wo.cull_back_faces = o.cull_back_faces;
