@@ -86,13 +86,30 @@ class KdBuilder {
   }
 
   // build() with options.root = root and the splits `splits` names instead of searched ones.
+  // An item's bounds at a node are its padded bounds clipped to the root, then to the node's
+  // region (build() clips them split by split, one axis at a time: min and max are exact, so
+  // the boxes are the same bit for bit), so a node's items are kept as indices into those
+  // bounds (boxes_, by axis) and clipped only where a split or a leaf reads them.
   Status assemble(const Scene& scene, const Aabb& root, KdSplitSource& splits, uint32_t max_depth,
                   size_t max_references) {
     std::vector<Item> items = scene_items(scene);
     clip_to_root(items, root);
     tree_.bounds_ = root;
-    levels_.clear();
-    levels_.push_back(std::move(items));
+    prims_.resize(items.size());
+    for (int a = 0; a < 3; ++a) {
+      lo_[a].resize(items.size());
+      hi_[a].resize(items.size());
+    }
+    for (size_t i = 0; i < items.size(); ++i) {
+      prims_[i] = items[i].prim;
+      for (int a = 0; a < 3; ++a) {
+        lo_[a][i] = items[i].box.lo[a];
+        hi_[a][i] = items[i].box.hi[a];
+      }
+    }
+    index_levels_.clear();
+    index_levels_.emplace_back(items.size());
+    for (uint32_t i = 0; i < items.size(); ++i) index_levels_[0][i] = i;
     max_depth_ = max_depth;
     max_references_ = max_references;
     if (Status s = assemble_node(splits, 0, root); !s) return s;
@@ -126,8 +143,8 @@ class KdBuilder {
     return it.box.hi[axis] > pos || (it.box.lo[axis] == pos && it.box.hi[axis] == pos);
   }
 
-  // One node of assemble(): its items are levels_[depth]; children use the deeper levels, so
-  // one buffer per depth serves every node (no allocation per node once they have grown).
+  // One node of assemble(): its items are index_levels_[depth]; children use the deeper levels,
+  // so one buffer per depth serves every node (no allocation per node once they have grown).
   Status assemble_node(KdSplitSource& splits, uint32_t depth, const Aabb& box) {
     const auto index = static_cast<uint32_t>(tree_.nodes_.size());
     const auto corrupt = [&](std::string_view what) {
@@ -136,42 +153,72 @@ class KdBuilder {
     if (depth > max_depth_) return corrupt(fmt::format("deeper than {}", max_depth_));
     tree_.nodes_.push_back({});
     tree_.depth_ = std::max(tree_.depth_, depth);
-    const int axis = splits.next_axis(levels_[depth].size());
+    const std::vector<uint32_t>& items = index_levels_[depth];
+    const int axis = splits.next_axis(items.size());
     if (axis == KdSplitSource::kLeaf) {
-      if (tree_.refs_.size() + levels_[depth].size() > max_references_) {
+      if (tree_.refs_.size() + items.size() > max_references_) {
         return corrupt(fmt::format("more than {} references", max_references_));
       }
-      make_leaf(index, levels_[depth], box);
+      assemble_leaf(index, items, box);
       return Status::ok();
     }
     if (axis < 0 || axis > 2) return corrupt("bad node");
-    Aabb occupied;
-    for (const Item& it : levels_[depth]) occupied.extend(it.box);
+    const double* lo = lo_[axis].data();
+    const double* hi = hi_[axis].data();
+    const double box_lo = box.lo[axis], box_hi = box.hi[axis];
+    // The extent the items occupy on the split axis (all a split source reads of it), as
+    // build() extends it over their clipped bounds, item by item.
+    Aabb occupied = box;
+    occupied.lo[axis] = kInfinity;
+    occupied.hi[axis] = -kInfinity;
+    for (const uint32_t i : items) {
+      occupied.lo[axis] = std::min(occupied.lo[axis], std::max(lo[i], box_lo));
+      occupied.hi[axis] = std::max(occupied.hi[axis], std::min(hi[i], box_hi));
+    }
     const double pos = splits.split(box, occupied, axis);
     if (!(pos > box.lo[axis] && pos < box.hi[axis])) return corrupt("split outside its region");
-    if (levels_.size() == depth + 1) levels_.emplace_back();  // a deque: references stay valid
-    const std::vector<Item>& items = levels_[depth];
-    std::vector<Item>& side = levels_[depth + 1];
+    if (index_levels_.size() == depth + 1) index_levels_.emplace_back();  // a deque: references stay valid
+    std::vector<uint32_t>& side = index_levels_[depth + 1];
     Aabb lbox = box, rbox = box;
     lbox.hi[axis] = pos;
     rbox.lo[axis] = pos;
+    // goes_left / goes_right of the item clipped to this node.
     side.clear();
-    for (const Item& it : items) {
-      if (!goes_left(it, axis, pos)) continue;
-      side.push_back(it);
-      side.back().box.hi[axis] = std::min(it.box.hi[axis], pos);
+    for (const uint32_t i : items) {
+      const double l = std::max(lo[i], box_lo), h = std::min(hi[i], box_hi);
+      if (l < pos || (l == pos && h == pos)) side.push_back(i);
     }
     if (Status s = assemble_node(splits, depth + 1, lbox); !s) return s;
     side.clear();
-    for (const Item& it : items) {
-      if (!goes_right(it, axis, pos)) continue;
-      side.push_back(it);
-      side.back().box.lo[axis] = std::max(it.box.lo[axis], pos);
+    for (const uint32_t i : items) {
+      const double l = std::max(lo[i], box_lo), h = std::min(hi[i], box_hi);
+      if (h > pos || (l == pos && h == pos)) side.push_back(i);
     }
     const auto upper = static_cast<uint32_t>(tree_.nodes_.size());
     if (Status s = assemble_node(splits, depth + 1, rbox); !s) return s;
     tree_.nodes_[index] = {pos, static_cast<uint32_t>(axis), upper};
     return Status::ok();
+  }
+
+  // make_leaf() for assemble(): the items' bounds clipped to the leaf's region.
+  void assemble_leaf(uint32_t index, const std::vector<uint32_t>& items, const Aabb& box) {
+    KdTree::Cell cell;
+    cell.bounds = box;
+    cell.first = static_cast<uint32_t>(tree_.refs_.size());
+    cell.count = static_cast<uint32_t>(items.size());
+    for (const uint32_t i : items) {
+      Aabb b;
+      for (int a = 0; a < 3; ++a) {
+        b.lo[a] = std::max(lo_[a][i], box.lo[a]);
+        b.hi[a] = std::min(hi_[a][i], box.hi[a]);
+      }
+      tree_.refs_.push_back(prims_[i]);
+      tree_.ref_bounds_.push_back(b);
+      cell.content.extend(b);
+    }
+    tree_.nodes_[index].axis_or_leaf = 3;
+    tree_.nodes_[index].child = static_cast<uint32_t>(tree_.cells_.size());
+    tree_.cells_.push_back(cell);
   }
 
   // Pads item bounds and clips them to `box`, dropping items that miss it.
@@ -457,8 +504,12 @@ class KdBuilder {
   KdBuildOptions options_;
   uint32_t max_depth_ = 0;
   std::vector<uint32_t> counts_;  // best_split's bin counts (a builder runs on one thread at a time)
-  std::deque<std::vector<Item>> levels_;  // assemble(): the items of the current node per depth
-  size_t max_references_ = 0;             // assemble()'s limit
+  // assemble(): the items (indices into prims_ and the bounds by axis lo_, hi_) of the current
+  // node per depth, and the limit on references.
+  std::deque<std::vector<uint32_t>> index_levels_;
+  std::vector<uint32_t> prims_;
+  std::array<std::vector<double>, 3> lo_, hi_;
+  size_t max_references_ = 0;
 };
 
 KdTree KdTree::build(const Scene& scene, const KdBuildOptions& options) {

@@ -55,7 +55,8 @@ class KdSplitSource {
   // stored tree is damaged.
   virtual int next_axis(size_t items) = 0;
   // The split position on `axis` of the node next_axis() just named, given its region and the
-  // extent its items occupy (their bounds clipped to the region; see KdTree::split_candidate).
+  // extent its items occupy on `axis` (their bounds clipped to the region; see
+  // KdTree::split_candidate, which reads no other axis of it; assemble() passes the region there).
   virtual double split(const Aabb& region, const Aabb& occupied, int axis) = 0;
 };
 
