@@ -295,6 +295,10 @@ class StoreBuilder {
       return Status::invalid_argument(fmt::format("--quant-bits {}: must be 8..30", options_.quant_bits));
     }
     if (options_.cell_prims < 1) return Status::invalid_argument("--cell-prims must be at least 1");
+    if (cell_codec_on_lattice(proxy_codec(options_)) && !cell_codec_on_lattice(options_.codec)) {
+      return Status::invalid_argument(fmt::format("--proxy-codec {} needs a lattice: not with --codec {}",
+                                                  cell_codec_name(proxy_codec(options_)), cell_codec_name(options_.codec)));
+    }
     if (options_.memory < (uint64_t{16} << 20)) {
       return Status::invalid_argument(fmt::format("--memory {}: at least 16M is needed", options_.memory));
     }
@@ -875,6 +879,13 @@ class StoreBuilder {
     return codec;
   }
 
+  // Proxy pages' codec options (BuildOptions::proxy_codec).
+  CellCodecOptions proxy_codec_options() const {
+    CellCodecOptions codec = codec_options();
+    codec.codec = proxy_codec(options_);
+    return codec;
+  }
+
   // Proxies of a part's tree (grafted at node_base), bottom-up on the worker threads; their pages
   // are written here in node order. Each proxy's bound is measured against the part's original
   // triangles through the part's hierarchy (proxy_bound.h), which is held until the part is done;
@@ -883,7 +894,7 @@ class StoreBuilder {
     const auto t = std::chrono::steady_clock::now();
     std::vector<PendingProxyPage> pages(tree.nodes().size());
     std::vector<BoundNode> bounds(tree.nodes().size());
-    const CellCodecOptions codec = codec_options();
+    const CellCodecOptions codec = proxy_codec_options();
     MeshLevels root;
     arena_->execute([&] { root = part_proxy(scene, tree, 0, tree.bounds(), pages, bounds, codec); });
     for (size_t i = 0; i < pages.size(); ++i) {
@@ -1060,7 +1071,7 @@ class StoreBuilder {
     PendingProxyPage page;
     MeshLevels levels;
     arena_->execute([&] {
-      levels = make_proxy(std::move(lower.levels), std::move(upper.levels), region, page, codec_options(), bounds, 0,
+      levels = make_proxy(std::move(lower.levels), std::move(upper.levels), region, page, proxy_codec_options(), bounds, 0,
                           lower_index, upper_index);
     });
     if (Status s = write_proxy(node, page); !s) return s;
@@ -1167,6 +1178,11 @@ void tune_allocator_for_build() {
   mallopt(M_TRIM_THRESHOLD, INT_MAX);
   mallopt(M_MMAP_THRESHOLD, 32 << 20);
   mallopt(M_TOP_PAD, 256 << 20);
+}
+
+CellCodec proxy_codec(const BuildOptions& options) {
+  if (options.proxy_codec) return *options.proxy_codec;
+  return options.codec == CellCodec::Draco ? CellCodec::Meshopt : options.codec;
 }
 
 Result<BuildReport> build_store(const BuildOptions& options) {

@@ -4,6 +4,7 @@
 // sizes stay within the target; degenerate, coplanar, sphere-only and far-from-origin input; and
 // damaged proxy pages are reported naming the node and the page.
 #include "preprocess/build.h"
+#include "src/codec/cell_tree.h"
 #include "src/core/tessellate.h"
 #include "src/lod/proxy.h"
 #include "src/lod/proxy_distance.h"
@@ -18,12 +19,15 @@
 #include <gtest/gtest.h>
 #include <xxhash.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <numbers>
+#include <optional>
 #include <random>
+#include <tuple>
 
 namespace frontier {
 namespace {
@@ -730,6 +734,86 @@ TEST(ProxyHierarchy, ADeepTerrainsProxiesCoverTheirRegions) {
   // Below its height range (it was 8.6 on a height range of 6.9 when proxies were simplified
   // from their children's).
   EXPECT_LT(model->proxies()[0].error, std::min({extent.x, extent.y, extent.z}));
+}
+
+// The codec tag of a page (without the in-page tree bit).
+CellCodec page_codec(const StoreModel& model, uint64_t page) {
+  auto p = model.reader().read_page(page);
+  EXPECT_TRUE(p) << p.status().to_string();
+  return p ? static_cast<CellCodec>(p->codec & ~kCellTreeFlag) : CellCodec::Raw;
+}
+
+TEST(BuildStoreProxy, ProxyPagesOfADracoStoreAreMeshoptByDefaultWithTheSameTrianglesAsDraco) {
+  const std::string input = generated("terrain", 6000);
+  BuildOptions o;
+  o.inputs = {input};
+  o.quiet = true;
+  o.threads = 2;
+  o.cell_prims = 64;
+  o.proxy_triangles = 48;
+  EXPECT_EQ(proxy_codec(o), CellCodec::Meshopt);
+  o.output = (scratch() / "proxy_meshopt.frontier").string();
+  ASSERT_TRUE(build_store(o));
+  o.proxy_codec = CellCodec::Draco;
+  o.output = (scratch() / "proxy_draco.frontier").string();
+  ASSERT_TRUE(build_store(o));
+  auto meshopt = StoreModel::open((scratch() / "proxy_meshopt.frontier").string());
+  auto draco = StoreModel::open((scratch() / "proxy_draco.frontier").string());
+  ASSERT_TRUE(meshopt && draco);
+  ASSERT_EQ((*meshopt)->proxies().size(), (*draco)->proxies().size());
+  size_t compared = 0;
+  for (uint32_t n = 0; n < (*meshopt)->nodes().size(); ++n) {
+    const StoreProxy* a = (*meshopt)->proxy(n);
+    const StoreProxy* b = (*draco)->proxy(n);
+    ASSERT_EQ(a == nullptr, b == nullptr) << "node " << n;
+    if (a == nullptr) continue;
+    EXPECT_EQ(page_codec(**meshopt, a->page), CellCodec::Meshopt) << "node " << n;
+    EXPECT_EQ(page_codec(**draco, b->page), CellCodec::Draco) << "node " << n;
+    EXPECT_EQ(a->error, b->error) << "node " << n;
+    // The same lattice points: the same triangles (as sets of corners and sources; the codecs
+    // order them their own way), and each page's tree loads.
+    Scene sa, sb;
+    const KdBuildOptions options = proxy_tree_options(*(*meshopt)->info().cell_tree);
+    std::optional<KdTree> ta, tb;
+    ASSERT_TRUE((*meshopt)->read_proxy(n, sa, &options, ta));
+    ASSERT_TRUE((*draco)->read_proxy(n, sb, &options, tb));
+    EXPECT_TRUE(ta.has_value() && tb.has_value()) << "node " << n;
+    const auto corners = [](const Scene& s) {
+      std::vector<std::array<double, 10>> out;
+      for (const PrimRef& p : s.prims) {
+        const Triangle& t = s.triangles[p.index];
+        std::array<Vec3, 3> v = {t.v0, t.v1, t.v2};
+        // Rotated so the smallest corner leads (a codec may start a triangle at another corner).
+        const auto less = [](const Vec3& x, const Vec3& y) {
+          return std::tie(x.x, x.y, x.z) < std::tie(y.x, y.y, y.z);
+        };
+        const size_t first = size_t(std::min_element(v.begin(), v.end(), less) - v.begin());
+        std::rotate(v.begin(), v.begin() + std::ptrdiff_t(first), v.end());
+        out.push_back({v[0].x, v[0].y, v[0].z, v[1].x, v[1].y, v[1].z, v[2].x, v[2].y, v[2].z, double(p.source)});
+      }
+      std::sort(out.begin(), out.end());
+      return out;
+    };
+    EXPECT_EQ(corners(sa), corners(sb)) << "node " << n;
+    ++compared;
+  }
+  EXPECT_GT(compared, 7u);
+  // The cells keep the store's codec.
+  for (const StoreCell& c : (*meshopt)->cells()) {
+    if (c.page == StoreCell::kNoPage) continue;
+    EXPECT_EQ(page_codec(**meshopt, c.page), CellCodec::Draco);
+  }
+  // A lattice codec for proxies needs a lattice store.
+  o.codec = CellCodec::Raw;
+  o.proxy_codec.reset();
+  EXPECT_EQ(proxy_codec(o), CellCodec::Raw);
+  o.proxy_codec = CellCodec::Meshopt;
+  o.output = (scratch() / "proxy_raw.frontier").string();
+  const auto refused = build_store(o);
+  ASSERT_FALSE(refused);
+  EXPECT_EQ(refused.status().code(), Status::Code::InvalidArgument);
+  EXPECT_NE(refused.status().message().find("--proxy-codec meshopt"), std::string::npos) << refused.status().message();
+  EXPECT_FALSE(std::filesystem::exists(o.output));
 }
 
 TEST(BuildStoreProxy, NoProxiesWithZeroTarget) {
