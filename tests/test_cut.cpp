@@ -16,7 +16,9 @@
 #include <nlohmann/json.hpp>
 
 #include <chrono>
+#include <cmath>
 #include <filesystem>
+#include <optional>
 #include <fstream>
 
 namespace frontier {
@@ -123,6 +125,7 @@ TEST(WalkthroughCut, ExactModesShowNoProxyAndEqualBruteForce) {
       EXPECT_EQ(r.proxy_pixels, 0u);
       EXPECT_EQ(r.proxy_nodes, 0u);
       EXPECT_EQ(r.cut_nodes, 0u);
+      EXPECT_EQ(r.cut_error, 0.0);
       std::vector<uint32_t> reference;
       std::vector<uint8_t> tie;
       testing::brute_reference(scene, (*with)->view(), reference, tie);
@@ -147,6 +150,10 @@ TEST(WalkthroughCut, AHugePixelErrorDrawsTheRootProxyAndReadsNoCellPage) {
     EXPECT_EQ(r.resident_cells, 0u);
     EXPECT_EQ(r.proxy_nodes, 1u);  // the root's
     EXPECT_EQ(r.cut_nodes, 1u);
+    // The root's bound projected: some pixels, far below the pixel error.
+    EXPECT_GT(r.cut_error, 0.0);
+    EXPECT_LT(r.cut_error, 1e12);
+    EXPECT_NEAR(r.cut_error, r.to_json()["cut_error"].get<double>(), 1e-9 * r.cut_error);
     const size_t geometry = geometry_pixels((*walk)->ids());
     EXPECT_GT(geometry, 0u);
     EXPECT_EQ(r.proxy_pixels, geometry);
@@ -331,6 +338,36 @@ TEST(WalkthroughCut, PeggedFramesNeverParkAndTheCutRefines) {
     }
     EXPECT_GT(asked, 0u) << "no frame asked for anything: the cut cannot refine";
     EXPECT_GT(most_drawn, 1u) << "the cut never refined below the root's proxy";
+  }
+}
+
+// The paging share before a pegged frame's rays follows how far the last frame's rays found the
+// cut from its pixel error: all of it from kFullShareError times T off, a fifth at T or closer,
+// in proportion between; the whole share before any frame and without a pixel error.
+TEST(WalkthroughCut, ThePagingShareFollowsTheCutsError) {
+  const double share = 0.25, t = 1.5, full = WalkOptions::kFullShareError;
+  EXPECT_EQ(WalkOptions::paging_share_for(share, std::nullopt, t), share);
+  EXPECT_EQ(WalkOptions::paging_share_for(share, 3.0, 0.0), share);
+  EXPECT_DOUBLE_EQ(WalkOptions::paging_share_for(share, full * t, t), share);
+  EXPECT_DOUBLE_EQ(WalkOptions::paging_share_for(share, 1e9, t), share);
+  EXPECT_DOUBLE_EQ(WalkOptions::paging_share_for(share, StandInReport::kEyeInside, t), share);
+  EXPECT_DOUBLE_EQ(WalkOptions::paging_share_for(share, 0.5 * full * t, t), 0.5 * share);
+  EXPECT_DOUBLE_EQ(WalkOptions::paging_share_for(share, t, t), 0.2 * share);
+  EXPECT_DOUBLE_EQ(WalkOptions::paging_share_for(share, 0.0, t), 0.2 * share);
+  // Monotone in the error.
+  double last = 0.0;
+  for (double e = 0.0; e <= 2.0 * full * t; e += 0.25) {
+    const double s = WalkOptions::paging_share_for(share, e, t);
+    EXPECT_GE(s, last) << e;
+    last = s;
+  }
+  // Not a share outside (0, 1].
+  WalkOptions o = options(1.0);
+  for (const double bad : {0.0, -0.1, 1.5, std::nan("")}) {
+    o.paging_share = bad;
+    const auto walk = Walkthrough::open(terrain().proxies, o);
+    ASSERT_FALSE(walk.is_ok()) << bad;
+    EXPECT_EQ(walk.status().code(), Status::Code::InvalidArgument);
   }
 }
 

@@ -591,7 +591,7 @@ TEST(ViewCommand, HeadlessWalkWritesTheReport) {
     EXPECT_EQ(j["frame"].get<int>(), frames);
     for (const char* k : {"cells_touched", "cells_paged_in", "bytes_read", "resident_bytes", "pinned_bytes",
                           "cache_budget", "primitives_tested", "ray_primitive_tests", "rays", "samples", "frame_ms",
-                          "stall_ms", "floor_ms", "oracle_cells", "collision_queries"}) {
+                          "stall_ms", "floor_ms", "oracle_cells", "collision_queries", "cut_error"}) {
       EXPECT_TRUE(j.contains(k)) << k;
     }
     EXPECT_LE(j["resident_bytes"].get<uint64_t>(), j["cache_budget"].get<uint64_t>());

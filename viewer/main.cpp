@@ -112,6 +112,7 @@ std::string walk_options(ViewerOptions& o, WalkOptions& wo) {
   wo.budget.ms = o.frame_ms;
   wo.budget.samples = o.samples;
   wo.min_sampled = o.min_sampled;
+  wo.paging_share = o.paging_share;
   wo.sync_paging = o.sync_paging;
   wo.pixel_error = o.pixel_error >= 0.0 ? o.pixel_error : (o.sync_paging ? 0.0 : 1.0);
   wo.oracle = o.oracle;

@@ -29,6 +29,12 @@ void add_scene_options(CLI::App& app, ViewerOptions& o) {
                  "time, from the peg or from when it was reached if later) until this share of its pixels is "
                  "sampled; 0 = pure frame-time pegging (default 0.5)")
       ->check(checks::between(0.0, 1.0));
+  app.add_option("--paging-share", o.paging_share,
+                 "store with proxies, with a pegged frame time: the most of each frame that paging in (the proxies "
+                 "and pages the cut asked for) may take before its rays; more refines sooner, less samples more. A "
+                 "frame takes all of it while the last frame's rays met proxies ten times the pixel error off or "
+                 "more (the report's cut_error), a fifth at the pixel error (default 0.25)")
+      ->check(checks::between(0.01, 1.0));
 }
 
 void add_store_options(CLI::App& app, ViewerOptions& o) {

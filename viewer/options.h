@@ -27,6 +27,7 @@ struct ViewerOptions {
   double frame_ms = 0.0;
   uint64_t samples = 0;
   double min_sampled = WalkOptions{}.min_sampled;
+  double paging_share = WalkOptions{}.paging_share;
   bool no_shadows = false;
   // Stores.
   std::string cache_text = "512M", collision_cache_text = "64M";

@@ -122,6 +122,11 @@ struct StandInReport {
   uint64_t proxy_nodes = 0;  // of those, the nodes the image's rays entered
   uint64_t proxy_cells = 0;  // store cells (with pages) below the nodes the rays entered
   uint64_t requests = 0;     // proxies and pages asked for, not in yet
+  // The largest error bound, projected to pixels, of a node the rays entered that is drawn by
+  // its proxy (0: none; kEyeInside when the eye is inside such a node): how far the image is
+  // from the cut's pixel error where rays went.
+  static constexpr double kEyeInside = 1e6;
+  double cut_error = 0.0;
 };
 
 class PagedWorld final : public CellGate {

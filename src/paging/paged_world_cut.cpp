@@ -551,7 +551,11 @@ StandInReport PagedWorld::stand_in_report() const {
   StandInReport r;
   r.cut_nodes = linked_nodes_.size();
   r.proxy_nodes = drawn_nodes_.size();
-  for (const uint32_t n : drawn_nodes_) r.proxy_cells += page_cells_under_[n];
+  for (const uint32_t n : drawn_nodes_) {
+    r.proxy_cells += page_cells_under_[n];
+    const double e = std::min(pixels_of(n), StandInReport::kEyeInside);
+    if (e > r.cut_error) r.cut_error = e;  // NaN (no view yet) stays out
+  }
   r.requests = requests_outstanding();
   return r;
 }

@@ -25,8 +25,6 @@ constexpr int kPrefetchFrames = 4;
 // The share of the decoded cells' room a pass of a thrashing image aims to fill (the rest
 // absorbs the error of estimating a part's cells from the last part's).
 constexpr double kPassFill = 0.75;
-// Share of a pegged frame time that paging in (on the frame's thread) may take at a time.
-constexpr double kPageInShare = 0.25;
 // What use_slack() leaves of a pegged frame for the frame's reports (at most a tenth of it).
 constexpr double kSlackReserveMs = 0.5;
 
@@ -90,6 +88,7 @@ nlohmann::json FrameReport::to_json() const {
                       {"proxy_nodes", proxy_nodes},
                       {"proxy_cells", proxy_cells},
                       {"requests", requests},
+                      {"cut_error", cut_error},
                       {"proxy_pixels", proxy_pixels},
                       {"stand_ins", stand_ins},
                       {"proxies_loaded", proxies_loaded}};
@@ -125,6 +124,9 @@ KdBuildOptions page_refine_options(const WalkOptions& options) {
 
 Result<std::unique_ptr<Walkthrough>> Walkthrough::open(const std::string& store_path, const WalkOptions& options) {
   if (options.width < 1 || options.height < 1) return Status::invalid_argument("image size must be at least 1x1");
+  if (!(options.paging_share > 0.0 && options.paging_share <= 1.0)) {
+    return Status::invalid_argument("the paging share must be in (0, 1]");
+  }
   auto model = StoreModel::open(store_path);
   if (!model) return model.status();
   std::unique_ptr<Walkthrough> w(new Walkthrough());
@@ -168,7 +170,9 @@ void Walkthrough::start_image(bool shadows, double pixel_error) {
   const bool pegged = !options_.sync_paging && (budget.ms > 0.0 || budget.samples > 0);
   world_->set_detail(view_, pixel_error, pegged);
   if (pegged && pixel_error > 0.0 && world_->has_proxies()) {
-    const double share = budget.ms > 0.0 ? kPageInShare * budget.ms : 8.0;
+    const double share =
+        budget.ms > 0.0 ? WalkOptions::paging_share_for(options_.paging_share, last_cut_error_, pixel_error) * budget.ms
+                        : 8.0;
     world_->sync(Clock::now() + ms_duration(share));
   }
   world_->begin_frame(marks_);
@@ -317,6 +321,7 @@ FrameReport Walkthrough::render_frame(const Camera& camera, bool deferred_now) {
   r.cells_touched = world_->end_frame(marks_);
   report_image(r, counters);
   image_proxy_pixels_ = r.proxy_pixels;
+  last_cut_error_ = r.cut_error;
   const double slack = use_slack(plan);
   report_paging(r);
   r.frame_ms = ms_since(start);
@@ -369,10 +374,11 @@ Walkthrough::FramePlan Walkthrough::plan_frame(Clock::time_point start, bool sti
     // A pegged frame time covers everything: the job queue stops early by what reconstruction
     // and bookkeeping took lately (a running estimate), so the frame ends on time.
     plan.deadline = after(std::max(0.5 * budget.ms, budget.ms - finish_ms_));
-    // Paging in (decode + subtree build) is frame time too: it gets at most a quarter of the
-    // frame while other work is queued; the rest waits for the next frame (its work stays
-    // parked), so a burst of new cells costs samples over a few frames instead of most of one.
-    plan.page_in_deadline = std::min(plan.deadline, after(kPageInShare * budget.ms));
+    // Paging in (decode + subtree build) is frame time too: it gets at most its share
+    // (WalkOptions::paging_share) of the frame while other work is queued; the rest waits for
+    // the next frame (its work stays parked), so a burst of new cells costs samples over a few
+    // frames instead of most of one.
+    plan.page_in_deadline = std::min(plan.deadline, after(options_.paging_share * budget.ms));
     // The quality floor (WalkOptions::min_sampled) holds for moving frames under a time peg.
     if (!still) plan.floor_samples = static_cast<uint64_t>(options_.min_sampled * double(view_.pixels()));
   }
@@ -435,7 +441,7 @@ double Walkthrough::use_slack(const FramePlan& plan) {
 
 Clock::time_point Walkthrough::page_in_slice(const FramePlan& plan) const {
   if (plan.wait_for_all || options_.budget.ms <= 0.0) return plan.deadline;
-  return std::min(plan.deadline, Clock::now() + ms_duration(kPageInShare * options_.budget.ms));
+  return std::min(plan.deadline, Clock::now() + ms_duration(options_.paging_share * options_.budget.ms));
 }
 
 bool Walkthrough::next_pass(bool finish) {
@@ -547,6 +553,7 @@ void Walkthrough::report_image(FrameReport& r, const Counters& counters) const {
     r.proxy_nodes = s.proxy_nodes;
     r.proxy_cells = s.proxy_cells;
     r.requests = s.requests;
+    r.cut_error = s.cut_error;
     // Over every pixel, so in parallel: at 1280x720 a frame's millisecond on one thread.
     r.proxy_pixels = tbb::parallel_reduce(
         tbb::blocked_range<size_t>(0, buffer_.size(), size_t{1} << 14), uint64_t{0},

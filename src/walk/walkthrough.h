@@ -70,6 +70,23 @@ struct WalkOptions {
   // show a frame that is mostly reconstruction, or none). 0: pure frame-time pegging
   // (paper §5.5). The report's floor_ms says how long a frame ran past its peg for it.
   double min_sampled = 0.5;
+  // The most of a pegged frame time that paging in may take on the frame's threads before its
+  // rays (decoding the proxies and pages the cut asked for, and placing them): more refines the
+  // cut sooner, less leaves more of the frame to rays. A frame takes all of it while the rays
+  // of the last one met proxies kFullShareError times the pixel error off or more
+  // (FrameReport::cut_error), less as they come closer, a fifth at the pixel error: a far
+  // terrain's cut 2-6 pixels off gains more from samples than from refining, a fly-over's or a
+  // building's 8-300 pixels off from refining (tests/bench/REPORT.md section 9, "The paging
+  // share"). A frame whose image completes early gives the rest of its time to paging as well
+  // (Walkthrough::use_slack).
+  double paging_share = 0.25;
+  static constexpr double kFullShareError = 10.0;
+  // The share of the frame that paging in takes before the rays of a frame whose last frame's
+  // cut was `cut_error` pixels off at pixel error `pixel_error` (none yet: the whole share).
+  static double paging_share_for(double paging_share, std::optional<double> cut_error, double pixel_error) {
+    if (!cut_error || !(pixel_error > 0.0)) return paging_share;
+    return paging_share * std::clamp(*cut_error / (kFullShareError * pixel_error), 0.2, 1.0);
+  }
   // How a paged-in store cell is refined (page-in time is frame time), and how frontier-build
   // builds the in-cell trees its pages carry. Measured on the 100 M triangle building walk
   // (tests/bench/bench_walk.sh): 16 / 4.0 / 0.75 build a cell in 1.3 ms instead of 2.9 ms
@@ -189,6 +206,7 @@ struct FrameReport {
   uint64_t proxy_nodes = 0;
   uint64_t proxy_cells = 0;
   uint64_t requests = 0;
+  double cut_error = 0.0;  // StandInReport::cut_error
   uint64_t proxy_pixels = 0;
   uint64_t stand_ins = 0;
   uint64_t proxies_loaded = 0;
@@ -308,6 +326,7 @@ class Walkthrough {
   uint64_t still_cut_changes_ = 0;   // world's cut_changes() at the last still refinement
   int still_waits_ = 0;
   uint64_t image_proxy_pixels_ = 0;  // proxy pixels of the current image, as last reported
+  std::optional<double> last_cut_error_;  // FrameReport::cut_error of the last frame
   uint64_t frames_ = 0;
   uint64_t last_bytes_read_ = 0;
   double finish_ms_ = 0.0;        // recent time from the end of the job queue to the end of a frame
