@@ -89,7 +89,7 @@ class KdBuilder {
   // An item's bounds at a node are its padded bounds clipped to the root, then to the node's
   // region (build() clips them split by split, one axis at a time: min and max are exact, so
   // the boxes are the same bit for bit), so a node's items are kept as indices into those
-  // bounds (boxes_, by axis) and clipped only where a split or a leaf reads them.
+  // bounds (lo_ and hi_, by axis) and clipped only where a split or a leaf reads them.
   Status assemble(const Scene& scene, const Aabb& root, KdSplitSource& splits, uint32_t max_depth,
                   size_t max_references) {
     std::vector<Item> items = scene_items(scene);
