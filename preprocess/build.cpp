@@ -295,9 +295,10 @@ class StoreBuilder {
       return Status::invalid_argument(fmt::format("--quant-bits {}: must be 8..30", options_.quant_bits));
     }
     if (options_.cell_prims < 1) return Status::invalid_argument("--cell-prims must be at least 1");
-    if (cell_codec_on_lattice(proxy_codec(options_)) && !cell_codec_on_lattice(options_.codec)) {
+    if (const CellCodec proxies = proxy_codec(options_);
+        cell_codec_on_lattice(proxies) && !cell_codec_on_lattice(options_.codec)) {
       return Status::invalid_argument(fmt::format("--proxy-codec {} needs a lattice: not with --codec {}",
-                                                  cell_codec_name(proxy_codec(options_)), cell_codec_name(options_.codec)));
+                                                  cell_codec_name(proxies), cell_codec_name(options_.codec)));
     }
     if (options_.memory < (uint64_t{16} << 20)) {
       return Status::invalid_argument(fmt::format("--memory {}: at least 16M is needed", options_.memory));

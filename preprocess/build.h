@@ -46,11 +46,10 @@
 #pragma once
 
 #include "src/codec/cell_codec.h"
-
-#include <optional>
 #include "src/core/status.h"
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
