@@ -9,6 +9,7 @@
 #include <bit>
 #include <cmath>
 #include <immintrin.h>
+#include <limits>
 
 namespace frontier {
 

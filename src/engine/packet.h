@@ -9,9 +9,11 @@
 //
 // Exactness: the hit of each lane is the one walk_ray finds — the nearest, ties to the lower
 // primitive — because leaves are visited in each lane's order along its ray, a hit counts only
-// before the lane's exit from the leaf (plus the same slack), and the filter's margin (1e-12
-// of the corners' magnitudes, ~10^4 times the rounding of either test) only rejects rays the
-// exact test would miss. A lane reaching a missing cell (CellGate) before any hit stops there,
+// before the lane's exit from the leaf (plus the same slack), and the filter's margin only
+// rejects rays the exact test would miss: 1e-12 of the corners' magnitudes (~10^4 times the
+// rounding of either test) where it runs in double precision, and 128 units of float rounding
+// (about 4 times what its single-precision arithmetic can lose) plus the corners' own rounding
+// where it runs on the leaf layout's float corners, eight triangles to an instruction. A lane reaching a missing cell (CellGate) before any hit stops there,
 // parked, as a lone walk is.
 //
 // Packets need the lanes to agree on the sign of each direction component (so "near child"
@@ -69,7 +71,8 @@ PacketIsa packet_isa();
 // triangles and its other primitives) and its triangles in blocks of kBlock, structure of
 // arrays: corners in float relative to the base, each triangle with a bound on that rounding,
 // its primitive and triangle index. The edge filter reads a block contiguously and tests its
-// triangles side by side, instead of following reference → primitive → triangle per triangle;
+// triangles side by side in single precision, instead of following reference → primitive →
+// triangle per triangle;
 // the exact test still reads the scene's own triangle. Built once per tree (a pass over its
 // references).
 class PacketLayout {
