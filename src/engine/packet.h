@@ -13,8 +13,8 @@
 // rejects rays the exact test would miss: 1e-12 of the corners' magnitudes (~10^4 times the
 // rounding of either test) where it runs in double precision, and 128 units of float rounding
 // (about 4 times what its single-precision arithmetic can lose) plus the corners' own rounding
-// where it runs on the leaf layout's float corners, eight triangles to an instruction. A lane reaching a missing cell (CellGate) before any hit stops there,
-// parked, as a lone walk is.
+// where it runs on the leaf layout's float corners, eight triangles to an instruction. A lane
+// reaching a missing cell (CellGate) before any hit stops there, parked, as a lone walk is.
 //
 // Packets need the lanes to agree on the sign of each direction component (so "near child"
 // means the same for all); trace() refuses the rare packet that does not (a block across the
@@ -72,9 +72,8 @@ PacketIsa packet_isa();
 // arrays: corners in float relative to the base, each triangle with a bound on that rounding,
 // its primitive and triangle index. The edge filter reads a block contiguously and tests its
 // triangles side by side in single precision, instead of following reference → primitive →
-// triangle per triangle;
-// the exact test still reads the scene's own triangle. Built once per tree (a pass over its
-// references).
+// triangle per triangle; the exact test still reads the scene's own triangle. Built once per
+// tree (a pass over its references).
 class PacketLayout {
  public:
   static constexpr int kBlock = 8;
