@@ -376,12 +376,10 @@ TEST(EngineHardCases, PacketFilterKeepsEveryRayTheExactTestHits) {
     Scene scene;
     scene.materials.push_back({});
     const Vec3 o(offset, offset, -offset);
-    std::vector<Triangle> tris;
     for (int i = 0; i < 24; ++i) {
       const Vec3 c = o + Vec3(4.0 * u(rng), 4.0 * u(rng), 0.2 * u(rng));
       const Triangle t{c, c + Vec3(0.2 + u(rng), 0.3 * u(rng), 0.1 * u(rng)), c + Vec3(0.3 * u(rng), 0.2 + u(rng), 0.1 * u(rng))};
       scene.add_triangle(t, uint32_t(i), 0);
-      tris.push_back(t);
     }
     const KdTree tree = KdTree::build(scene, {});
     const PacketLayout layout(scene, tree);
@@ -397,7 +395,7 @@ TEST(EngineHardCases, PacketFilterKeepsEveryRayTheExactTestHits) {
           while (packet.count < kPacketRays) {
             // A point on an edge (or a corner), moved off it within the triangle's plane by a
             // tiny share of the edge, inwards or outwards, and a little along the normal.
-            const Triangle& t = tris[size_t(rng() % tris.size())];
+            const Triangle& t = scene.triangles[size_t(rng() % scene.triangles.size())];
             const Vec3 v[3] = {t.v0, t.v1, t.v2};
             const int e = int(rng() % 3);
             const Vec3 a = v[e], b = v[(e + 1) % 3], c = v[(e + 2) % 3];
@@ -410,16 +408,10 @@ TEST(EngineHardCases, PacketFilterKeepsEveryRayTheExactTestHits) {
           PacketResult result;
           ASSERT_TRUE(tracer.trace(packet, result, counters));
           for (int k = 0; k < packet.count; ++k) {
-            const Ray& ray = packet.rays[k];
-            bool any = false;
-            double nearest = kInfinity;
-            for (const Triangle& t : tris) {
-              double th = 0.0;
-              if (intersect_triangle(t, ray, 0.0, nearest, th)) {
-                any = true;
-                nearest = th;
-              }
-            }
+            Counters brute;
+            const RayHit reference = brute_force_hit(scene, packet.rays[k], 0.0, brute);
+            const bool any = reference.hit();
+            const double nearest = reference.t;
             ++rays;
             hits += any ? 1 : 0;
             ASSERT_EQ(result.hit[k].hit(), any) << "offset " << offset << ", kernel " << int(isa)
