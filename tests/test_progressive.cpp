@@ -77,6 +77,95 @@ TEST(Progressive, InterruptedFrameIsCompleteAndResumesToTheFullRender) {
   }
 }
 
+// A bumpy height field of triangles (packets apply), seen at an angle.
+Scene bumpy_terrain(int n) {
+  Scene scene;
+  scene.materials.push_back({});
+  auto z = [](int x, int y) { return 0.3 * std::sin(0.7 * x) * std::cos(0.5 * y) + 0.05 * ((x * 7 + y * 3) % 5); };
+  uint32_t id = 0;
+  for (int y = 0; y < n; ++y) {
+    for (int x = 0; x < n; ++x) {
+      const Vec3 a(x, y, z(x, y)), b(x + 1, y, z(x + 1, y)), c(x, y + 1, z(x, y + 1)), d(x + 1, y + 1, z(x + 1, y + 1));
+      scene.add_triangle({a, b, d}, id++, 0);
+      scene.add_triangle({a, d, c}, id++, 0);
+    }
+  }
+  return scene;
+}
+
+// Previews (FrustumCaster::set_preview): a budgeted frame first traces each leaf frustum at
+// points a few pixels apart and comes back for the rest. Stopped once every leaf has its
+// preview, no block of 8 × 8 pixels over the terrain is without a sample (the anchors alone
+// are 32 pixels apart); every sample is the complete render's, and the frame resumed to the
+// end equals it pixel for pixel.
+TEST(Progressive, PreviewSamplesEveryLeafAFewPixelsApartAndStaysExact) {
+  const Scene scene = bumpy_terrain(48);
+  const KdTree tree = KdTree::build(scene, {});
+  const View view(testing::camera_at(Vec3(-4.0, -4.0, 7.0), Vec3(20.0, 20.0, 0.0), 50.0), 256, 192);
+  const Shader shader(scene, tree);
+  SampleBuffer full;
+  {
+    CellMarks marks;
+    FrustumCaster caster(scene, tree, shader, 2);
+    caster.set_leaf_pixels(32);
+    caster.begin(view, full, marks, true, false);
+    Counters counters;
+    ASSERT_TRUE(caster.run(FrameBudget{}, counters));
+  }
+  size_t geometry = 0;
+  for (size_t i = 0; i < view.pixels(); ++i) geometry += full.prim(i) != kNoPrim ? 1 : 0;
+  ASSERT_GT(geometry, view.pixels() / 2) << "the terrain should fill most of the view";
+
+  for (const bool preview : {false, true}) {
+    SampleBuffer buffer;
+    CellMarks marks;
+    FrustumCaster caster(scene, tree, shader, 2);
+    caster.set_leaf_pixels(32);
+    caster.set_preview(preview);
+    caster.begin(view, buffer, marks, true, false);
+    EXPECT_EQ(caster.preview(), preview);
+    Counters counters;
+    // One sample at a time: run() stops after each job; stop at the first moment a quarter of
+    // the pixels are confirmed.
+    FrameBudget budget;
+    budget.samples = 1;
+    while (buffer.confirmed_count() < view.pixels() / 4 && !caster.run(budget, counters)) {
+    }
+    ASSERT_LT(buffer.confirmed_count(), view.pixels() / 2) << "preview " << preview;
+    size_t empty = 0, blocks = 0;
+    for (int by = 0; by + 8 <= view.height; by += 8) {
+      for (int bx = 0; bx + 8 <= view.width; bx += 8) {
+        size_t n = 0, g = 0;
+        for (int y = by; y < by + 8; ++y) {
+          for (int x = bx; x < bx + 8; ++x) {
+            const size_t i = size_t(y) * size_t(view.width) + size_t(x);
+            n += buffer.confirmed(i) ? 1 : 0;
+            g += full.prim(i) != kNoPrim ? 1 : 0;
+          }
+        }
+        if (g < 64) continue;  // only blocks wholly on the terrain
+        ++blocks;
+        empty += n == 0 ? 1 : 0;
+      }
+    }
+    ASSERT_GT(blocks, 100u);
+    if (preview) {
+      EXPECT_EQ(empty, 0u) << "of " << blocks << " blocks of 8 × 8 pixels on the terrain";
+    } else {
+      EXPECT_GT(empty, blocks / 10) << "without previews whole leaves are still open (the test's premise)";
+    }
+    size_t differ = 0;
+    for (size_t i = 0; i < view.pixels(); ++i) differ += buffer.confirmed(i) && buffer.prim(i) != full.prim(i) ? 1 : 0;
+    EXPECT_EQ(differ, 0u) << "preview " << preview;
+    while (!caster.run(FrameBudget{}, counters)) {
+    }
+    ASSERT_EQ(buffer.confirmed_count(), view.pixels());
+    differ = 0;
+    for (size_t i = 0; i < view.pixels(); ++i) differ += buffer.prim(i) != full.prim(i) ? 1 : 0;
+    EXPECT_EQ(differ, 0u) << "resumed, preview " << preview;
+  }
+}
+
 TEST(Progressive, SampleBudgetLeavesSamplesSpreadOverTheScreen) {
   const Scene scene = lit_scene(true, false);
   const KdTree tree = KdTree::build(scene, {});

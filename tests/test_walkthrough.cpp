@@ -198,7 +198,8 @@ TEST(Walkthrough, ParkedWorkResumesAndConverges) {
 
 // The sample floor under a frame-time peg far below what the view needs: with it every moving
 // frame of the building walk samples at least half its pixels or runs until the floor's cap;
-// without it no frame runs past its peg, and the frames sample less.
+// without it no frame runs past its peg, and the frames sample less. A frame after one that
+// needed the floor previews its leaves; none does without a floor.
 TEST(Walkthrough, SampleFloorHoldsUnderATightFrameTimePeg) {
   const std::vector<Camera> cams = walk_cameras();
   ASSERT_FALSE(cams.empty());
@@ -215,18 +216,25 @@ TEST(Walkthrough, SampleFloorHoldsUnderATightFrameTimePeg) {
     return out;
   };
   const double cap_ms = (1.0 + Walkthrough::kFloorMaxOvertime) * 0.5;
-  uint64_t with = 0, without = 0, floored = 0;
+  uint64_t with = 0, without = 0, floored = 0, previews = 0;
+  bool last_floored = false;
   for (const FrameReport& r : walk_with(0.5)) {
     EXPECT_TRUE(2 * r.samples >= r.pixels || r.frame_ms >= cap_ms)
         << "frame " << r.frame << ": " << r.samples << " of " << r.pixels << " samples in " << r.frame_ms << " ms";
     with += r.samples;
     floored += r.floor_ms > 0.0 ? 1 : 0;
+    // A frame after one that needed the floor previews its leaves (FrustumCaster::set_preview).
+    EXPECT_EQ(r.preview, last_floored) << "frame " << r.frame;
+    previews += r.preview ? 1 : 0;
+    last_floored = r.floor_ms > 0.0;
   }
   for (const FrameReport& r : walk_with(0.0)) {
     EXPECT_EQ(r.floor_ms, 0.0) << "frame " << r.frame;
+    EXPECT_FALSE(r.preview) << "frame " << r.frame << ": no floor, no previews";
     without += r.samples;
   }
   EXPECT_GT(floored, 0u) << "a 0.5 ms peg was meant to need the floor";
+  EXPECT_GT(previews, 0u);
   EXPECT_GT(with, without);
 }
 
@@ -591,7 +599,7 @@ TEST(ViewCommand, HeadlessWalkWritesTheReport) {
     EXPECT_EQ(j["frame"].get<int>(), frames);
     for (const char* k : {"cells_touched", "cells_paged_in", "bytes_read", "resident_bytes", "pinned_bytes",
                           "cache_budget", "primitives_tested", "ray_primitive_tests", "rays", "samples", "frame_ms",
-                          "stall_ms", "floor_ms", "oracle_cells", "collision_queries", "cut_error"}) {
+                          "stall_ms", "floor_ms", "preview", "oracle_cells", "collision_queries", "cut_error"}) {
       EXPECT_TRUE(j.contains(k)) << k;
     }
     EXPECT_LE(j["resident_bytes"].get<uint64_t>(), j["cache_budget"].get<uint64_t>());

@@ -65,6 +65,7 @@ void FrustumCaster::begin(const View& view, SampleBuffer& buffer, CellMarks& mar
   buffer_ = &buffer;
   marks_ = &marks;
   shadows_ = shadows;
+  preview_ = preview_next_;
   buffer.resize(view.width, view.height);
   buffer.begin_frame();
   buffer.set_sky(shader_.background());
@@ -400,6 +401,7 @@ bool FrustumCaster::run(const FrameBudget& budget, Counters& counters) {
   // The shared sample count is only kept while a sample budget needs it (one contended
   // atomic per pixel otherwise). A later run with a sample budget starts counting from there.
   count_samples_ = budget.samples > 0;
+  budgeted_ = budget.ms > 0.0 || budget.samples > 0;
   if (count_samples_) samples_done_ = 0;
   if (anchors_next_ < anchors_.size()) {
     if (budget.ms > 0.0 || budget.samples > 0) {

@@ -100,6 +100,10 @@ bool FrustumCaster::classify_planes(int x0, int x1, int y0, int y1, const Aabb& 
 // Runs one job: its corner rays once, then cell by cell until every pixel of it is resolved,
 // parked, or handed to children.
 void FrustumCaster::process(Job job, Worker& w) {
+  if (job.refine != 0) {  // a leaf whose preview is traced: the rest of its pixels
+    resolve_by_packets(job, w, job.refine == kRefineFromNext);
+    return;
+  }
   const std::array<std::array<int, 2>, 4> corner = {{{job.x0, job.y0}, {job.x1, job.y0},
                                                      {job.x0, job.y1}, {job.x1, job.y1}}};
   std::array<Ray, 4> rays;

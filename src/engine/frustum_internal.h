@@ -28,6 +28,7 @@ namespace frustum_detail {
 constexpr uint8_t kLeft = 1, kRight = 2, kBottom = 4, kTop = 8;  // straddle bits per plane
 // Job::state: no list collected yet in this cell, nothing left in it, or a list inherited.
 constexpr uint8_t kFresh = 0, kEmpty = 1, kList = 2;
+constexpr uint8_t kRefineFromNext = 1, kRefineFromCell = 2;
 // A fill gives up when more elements than this could come before its element (fill files and
 // the look-ahead's plane fill).
 constexpr uint32_t kMaxFillOccluders = 6;
@@ -83,6 +84,9 @@ struct FrustumCaster::Job {
   uint32_t inc_begin = 0, inc_count = 0;   // incidence list in arenas_in_[arena]
   uint16_t arena = 0;
   uint8_t state = 0;                       // kFresh, kEmpty or kList
+  // A leaf frustum of a budgeted frame whose preview packet is traced (resolve_by_packets):
+  // kRefineFromNext or kRefineFromCell, how its other pixels' rays start; 0 otherwise.
+  uint8_t refine = 0;
   bool small(int leaf) const { return x1 - x0 < leaf && y1 - y0 < leaf; }
 };
 

@@ -56,6 +56,7 @@ nlohmann::json FrameReport::to_json() const {
                       {"frame_ms", frame_ms},
                       {"stall_ms", stall_ms},
                       {"floor_ms", floor_ms},
+                      {"preview", preview},
                       {"image_samples", image_samples},
                       {"pixels", pixels},
                       {"complete", complete},
@@ -179,6 +180,8 @@ void Walkthrough::start_image(bool shadows, double pixel_error) {
   image_shadows_ = shadows;
   image_pixel_error_ = pixel_error;
   image_proxy_pixels_ = 0;
+  // Kernel-bound frames (the last one needed the sample floor) preview their leaves first.
+  caster_->set_preview(needed_floor_);
   caster_->begin(view_, buffer_, marks_, true, shadows);
   image_samples_ = 0;
   passes_ = Passes();
@@ -326,6 +329,8 @@ FrameReport Walkthrough::render_frame(const Camera& camera, bool deferred_now) {
   report_paging(r);
   r.frame_ms = ms_since(start);
   if (plan.overtime) r.floor_ms = std::max(0.0, r.frame_ms - options_.budget.ms);
+  needed_floor_ = r.floor_ms > 0.0;
+  r.preview = caster_->preview();
   // The estimate follows increases at once and decreases slowly (a late frame costs more
   // than a few samples).
   const double finish = ms_since(finish_start) - slack;  // the slack is not bookkeeping

@@ -157,6 +157,7 @@ struct FrameReport {
   double frame_ms = 0.0;
   double stall_ms = 0.0;            // waiting for pages with nothing else to do
   double floor_ms = 0.0;            // time past the pegged frame time spent reaching min_sampled
+  bool preview = false;             // leaves traced a preview first (after a frame that needed the floor)
   // More.
   std::optional<uint64_t> oracle_cells;
   std::optional<double> oracle_ratio;  // cells_touched / oracle_cells
@@ -320,6 +321,7 @@ class Walkthrough {
   bool image_shadows_ = false;
   double image_pixel_error_ = 0.0;   // the pixel error of the current image
   uint64_t parked_at_start_ = 0;     // jobs parked or held when the frame began (continued image)
+  bool needed_floor_ = false;        // the last frame ran past its peg for min_sampled (previews next)
   // A still camera's images refine the cut while what it asked for comes in; after this many in
   // a row without a change of the cut, the exact image follows anyway.
   static constexpr int kStillWaits = 8;
