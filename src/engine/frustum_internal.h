@@ -84,8 +84,8 @@ struct FrustumCaster::Job {
   uint32_t inc_begin = 0, inc_count = 0;   // incidence list in arenas_in_[arena]
   uint16_t arena = 0;
   uint8_t state = 0;                       // kFresh, kEmpty or kList
-  // A leaf frustum of a budgeted frame whose preview packet is traced (resolve_by_packets):
-  // kRefineFromNext or kRefineFromCell, how its other pixels' rays start; 0 otherwise.
+  // A leaf frustum of a budgeted frame whose preview is traced (resolve_by_packets):
+  // kRefineFromNext or kRefineFromCell, where its other pixels' rays start; 0 otherwise.
   uint8_t refine = 0;
   bool small(int leaf) const { return x1 - x0 < leaf && y1 - y0 < leaf; }
 };

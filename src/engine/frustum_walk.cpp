@@ -145,7 +145,7 @@ void FrustumCaster::trace_preview(const Job& job, Worker& w, bool from_next_cell
 // packet. Each ray starts where its walk would: past the job's cell when the frustum has
 // resolved that cell for them (`from_next_cell`: nothing there or before it within the slack,
 // so no hit is lost by starting at the cell's exit), at the cell's entry otherwise, and from
-// the near plane when the job has no cell (outside the root, or the reconstruction anchors).
+// the near plane when the job has no cell (outside the root).
 // A lane stopped by a missing cell is parked as a lone walk would be; a packet whose rays
 // disagree on a direction's sign, or of fewer than kMinPacketRays open pixels, is walked.
 void FrustumCaster::trace_packet(const Job& job, const int* px, const int* py, int n, Worker& w,
