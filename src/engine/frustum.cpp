@@ -65,7 +65,6 @@ void FrustumCaster::begin(const View& view, SampleBuffer& buffer, CellMarks& mar
   buffer_ = &buffer;
   marks_ = &marks;
   shadows_ = shadows;
-  preview_ = preview_next_;
   buffer.resize(view.width, view.height);
   buffer.begin_frame();
   buffer.set_sky(shader_.background());

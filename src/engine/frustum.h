@@ -90,7 +90,7 @@ class FrustumCaster {
   static constexpr int kDefaultLeafPixels = 16;
   void set_leaf_pixels(int pixels) { leaf_ = pixels < 2 ? 2 : pixels; }
 
-  // Previews (from the next begin(), in budgeted runs of a scene of triangles): each leaf
+  // Previews (in budgeted runs of a scene of triangles): each leaf
   // frustum first traces only points of its quadrant subdivision about 4 pixels apart (1/25 of
   // its pixels) and comes back for the rest after every leaf has had its preview, so a frame
   // whose budget ends among the leaves shows the unfinished ones at that resolution instead of
@@ -100,8 +100,8 @@ class FrustumCaster {
   // PSNR); its fly-over, whose frames run to the sample floor anyway, 0.20-0.26 against
   // 0.29-0.32, at 23.6-24.2 dB against 23.5-23.8, and showed its horizon and ridges where it
   // showed blocks of blur. Off by default; Walkthrough turns it on after a frame that needed
-  // its sample floor.
-  void set_preview(bool on) { preview_next_ = on; }
+  // its sample floor. A leaf already previewed finishes either way when it is changed mid-image.
+  void set_preview(bool on) { preview_ = on; }
   bool preview() const { return preview_; }
 
   // Starts a new frame for `view`; the buffer's frame stamp advances (nothing is cleared).
@@ -248,9 +248,8 @@ class FrustumCaster {
   CellMarks* marks_ = nullptr;
   int leaf_ = kDefaultLeafPixels;
   bool shade_ = true;
-  bool budgeted_ = false;      // this run() has a time or sample budget (resolve_by_packets previews)
-  bool preview_ = false;       // this frame previews its leaves (set_preview at begin())
-  bool preview_next_ = false;
+  bool budgeted_ = false;  // this run() has a time or sample budget (resolve_by_packets previews)
+  bool preview_ = false;   // leaves trace their previews first (set_preview)
   bool shadows_ = true;
   double slack_scale_ = 1.0;
 

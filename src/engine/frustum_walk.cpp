@@ -85,6 +85,8 @@ void FrustumCaster::resolve_by_packets(const Job& job, Worker& w, bool from_next
     resolve_by_walking(job, w, from_next_cell);
     return;
   }
+  if (!w.packets) w.packets = std::make_unique<PacketTracer>(scene_, tree_);
+  w.packets->bind(marks_, gate_, gate_ == nullptr ? packet_layout_.get() : nullptr);
   if (preview_ && budgeted_ && job.refine == 0 && (job.x1 - job.x0 + 1) * (job.y1 - job.y0 + 1) > 2 * kPacketRays) {
     trace_preview(job, w, from_next_cell);
     Job rest = job;
@@ -148,11 +150,10 @@ void FrustumCaster::trace_preview(const Job& job, Worker& w, bool from_next_cell
 // the near plane when the job has no cell (outside the root).
 // A lane stopped by a missing cell is parked as a lone walk would be; a packet whose rays
 // disagree on a direction's sign, or of fewer than kMinPacketRays open pixels, is walked.
+// REQUIRES: w.packets made and bound for this frame (resolve_by_packets, once per job).
 void FrustumCaster::trace_packet(const Job& job, const int* px, const int* py, int n, Worker& w,
                                  bool from_next_cell) {
   constexpr int kMinPacketRays = 4;
-  if (!w.packets) w.packets = std::make_unique<PacketTracer>(scene_, tree_);
-  w.packets->bind(marks_, gate_, gate_ == nullptr ? packet_layout_.get() : nullptr);
   const size_t W = static_cast<size_t>(view_.width);
   RayPacket packet;
   int lx[kPacketRays], ly[kPacketRays];
