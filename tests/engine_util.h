@@ -73,10 +73,13 @@ inline Comparison compare_ids(const std::vector<uint32_t>& reference, const std:
   return c;
 }
 
+// `accel`: frustum casting's and packets' rays through Embree's BVH (the default), else the k-d tree.
 inline std::vector<uint32_t> render_ids(const Scene& scene, const KdTree& tree, const View& view, Method method,
-                                        int threads = 2, int leaf_pixels = FrustumCaster::kDefaultLeafPixels) {
+                                        int threads = 2, int leaf_pixels = FrustumCaster::kDefaultLeafPixels,
+                                        bool accel = true) {
   RenderOptions options;
   options.method = method;
+  options.accel = accel;
   options.leaf_pixels = leaf_pixels;
   options.threads = threads;
   options.shade = false;

@@ -3,10 +3,13 @@
 // far-from-origin coordinates, one-primitive cells, closed meshes that must not leak.
 #include "src/core/tessellate.h"
 #include "src/engine/packet.h"
+#include "src/engine/prim_accel.h"
 #include "src/io/load_scene.h"
 #include "tests/engine_util.h"
 
 #include <gtest/gtest.h>
+
+#include <tuple>
 
 namespace frontier {
 namespace {
@@ -22,15 +25,19 @@ void expect_matches_brute(const Scene& scene, const KdTree& tree, const View& vi
   std::vector<uint32_t> ref;
   std::vector<uint8_t> tie;
   brute_reference(scene, view, ref, tie);
-  // Ray walking, and frustum casting with the paper's 2×2 leaves, odd 5×5 leaves and the default.
-  const std::pair<Method, int> runs[] = {{Method::RayWalk, 0},
-                                         {Method::Packet, 0},
-                                         {Method::Frustum, 2},
-                                         {Method::Frustum, 5},
-                                         {Method::Frustum, FrustumCaster::kDefaultLeafPixels}};
-  for (const auto& [m, leaf] : runs) {
-    const Comparison c = compare_ids(ref, tie, render_ids(scene, tree, view, m, 2, leaf), view.width);
-    EXPECT_EQ(c.mismatches, 0u) << what << " " << method_name(m) << " leaf " << leaf << ": " << c.first_mismatch;
+  // Ray walking, packets and frustum casting with the paper's 2×2 leaves, odd 5×5 leaves and the
+  // default, their rays through Embree's BVH (accel) and through the k-d tree.
+  const std::tuple<Method, int, bool> runs[] = {{Method::RayWalk, 0, false},
+                                                {Method::Packet, 0, true},
+                                                {Method::Packet, 0, false},
+                                                {Method::Frustum, 2, true},
+                                                {Method::Frustum, 5, true},
+                                                {Method::Frustum, FrustumCaster::kDefaultLeafPixels, true},
+                                                {Method::Frustum, FrustumCaster::kDefaultLeafPixels, false}};
+  for (const auto& [m, leaf, accel] : runs) {
+    const Comparison c = compare_ids(ref, tie, render_ids(scene, tree, view, m, 2, leaf, accel), view.width);
+    EXPECT_EQ(c.mismatches, 0u) << what << " " << method_name(m) << " leaf " << leaf << (accel ? " accel" : " k-d")
+                                << ": " << c.first_mismatch;
     if (ties_out) *ties_out += c.ties;
   }
 }
@@ -252,6 +259,7 @@ TEST(EngineHardCases, PacketsFilterMostTestsAndWalkMixedSigns) {
   RenderOptions options;
   options.method = Method::Packet;
   options.shade = false;
+  options.accel = false;  // the k-d kernel's filter (Embree's BVH: below)
   const Counters c = renderer.render(view, options, buffer);
   EXPECT_EQ(c.packet_rays + c.rays_walked, c.rays);
   EXPECT_EQ(c.rays, 64u * 64u);
@@ -266,6 +274,12 @@ TEST(EngineHardCases, PacketsFilterMostTestsAndWalkMixedSigns) {
   EXPECT_GT(d.rays_walked, 0u);
   EXPECT_GT(d.packet_rays, 0u);
   expect_matches_brute(scene, tree, down, "packets looking down -z");
+  // Through Embree's BVH every block is a packet, mixed signs or not (the ids: just above).
+  options.accel = true;
+  const Counters e = renderer.render(down, options, buffer);
+  EXPECT_EQ(e.rays_walked, 0u);
+  EXPECT_EQ(e.packet_rays, 33u * 33u);
+  EXPECT_GT(e.accel_rays, 0u);  // those that meet the scene's bounds
 }
 
 // The ids of a view's packets traced without a leaf layout (as the paged walk traces them: the
@@ -367,7 +381,7 @@ TEST(EngineHardCases, EveryPacketKernelTheCpuRunsMatchesBruteForce) {
 // leaf layout and without) exactly what the watertight test gives them alone. A filter whose
 // margin did not cover its rounding (single precision in the layout's) rejects rays just inside.
 TEST(EngineHardCases, PacketFilterKeepsEveryRayTheExactTestHits) {
-  RecordProperty("methods", "packet kernels with and without the leaf layout: hit or miss of rays grazing edges and corners, against intersect_triangle");
+  RecordProperty("methods", "packet kernels with and without the leaf layout, and through Embree's BVH (PrimAccel): hit or miss of rays grazing edges and corners, against intersect_triangle");
   std::mt19937_64 rng(41);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   const PacketIsa best = packet_isa();
@@ -383,12 +397,17 @@ TEST(EngineHardCases, PacketFilterKeepsEveryRayTheExactTestHits) {
     }
     const KdTree tree = KdTree::build(scene, {});
     const PacketLayout layout(scene, tree);
+    const PrimAccel accel = PrimAccel::build(scene);
     // One eye below and before every triangle: every direction has positive components.
     const Vec3 eye = o + Vec3(-3.0, -2.0, -1.5);
-    for (const PacketIsa isa : {PacketIsa::Baseline, PacketIsa::Avx2, PacketIsa::Avx512}) {
-      if (!use_packet_isa(isa)) continue;
+    // The kernels the CPU runs, with and without the layout; then (isa -1) Embree's BVH.
+    for (const int isa_or_accel : {int(PacketIsa::Baseline), int(PacketIsa::Avx2), int(PacketIsa::Avx512), -1}) {
+      const auto isa = PacketIsa(isa_or_accel);
+      const bool with_accel = isa_or_accel < 0;
+      if (!with_accel && !use_packet_isa(isa)) continue;
       for (const PacketLayout* l : {&layout, static_cast<const PacketLayout*>(nullptr)}) {
-        PacketTracer tracer(scene, tree, nullptr, nullptr, l);
+        if (with_accel && l != nullptr) continue;
+        PacketTracer tracer(scene, tree, nullptr, nullptr, l, with_accel ? &accel : nullptr);
         Counters counters;
         for (int p = 0; p < 200; ++p) {
           RayPacket packet;
@@ -407,6 +426,9 @@ TEST(EngineHardCases, PacketFilterKeepsEveryRayTheExactTestHits) {
           }
           PacketResult result;
           ASSERT_TRUE(tracer.trace(packet, result, counters));
+          if (with_accel) {
+            ASSERT_EQ(counters.accel_rays, uint64_t(p + 1) * kPacketRays) << "offset " << offset << ": not Embree's";
+          }
           for (int k = 0; k < packet.count; ++k) {
             Counters brute;
             const RayHit reference = brute_force_hit(scene, packet.rays[k], 0.0, brute);
@@ -414,10 +436,11 @@ TEST(EngineHardCases, PacketFilterKeepsEveryRayTheExactTestHits) {
             const double nearest = reference.t;
             ++rays;
             hits += any ? 1 : 0;
-            ASSERT_EQ(result.hit[k].hit(), any) << "offset " << offset << ", kernel " << int(isa)
+            ASSERT_EQ(result.hit[k].hit(), any) << "offset " << offset << ", kernel " << isa_or_accel
                                                 << (l ? ", layout" : ", no layout") << ", packet " << p << " lane " << k;
             if (any) {
               EXPECT_EQ(result.hit[k].t, nearest);
+              EXPECT_EQ(result.hit[k].prim, reference.prim);
             }
           }
         }
@@ -653,6 +676,55 @@ TEST(EngineHardCases, InseparableClustersKeepTheTreeSmall) {
       << " cells";
   expect_matches_brute(scene, tree, View(camera_at(Vec3(4.5, -6.0, 3.0), Vec3(4.5, 0.0, 0.0), 50.0), 65, 65),
                        "clusters");
+}
+
+
+// An eye so far from the scene that Embree's float rays could stray past the boxes' margin
+// (PrimAccel::usable): the packet goes through the k-d tree instead, with the same hits; an
+// eye nearby goes through Embree's BVH.
+TEST(EngineHardCases, EmbreeBvhHandsFarEyesToTheKdTree) {
+  RecordProperty("methods", "packets through Embree's BVH (PrimAccel) against brute force, eye near and 1e4 scene sizes away");
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  Scene scene;
+  scene.materials.push_back({});
+  for (int i = 0; i < 200; ++i) {
+    const Vec3 c(u(rng), u(rng), 0.1 * u(rng));
+    scene.add_triangle(Triangle{c, c + Vec3(0.05, 0.01, 0.0), c + Vec3(0.0, 0.05, 0.01)}, uint32_t(i), 0);
+  }
+  const KdTree tree = KdTree::build(scene, {});
+  const PrimAccel accel = PrimAccel::build(scene);
+  ASSERT_FALSE(accel.empty());
+  for (const double distance : {2.0, 2e4}) {
+    PacketTracer tracer(scene, tree, nullptr, nullptr, nullptr, &accel);
+    Counters counters;
+    const Vec3 eye(-1.0, -1.0, -distance);  // every direction positive: the k-d kernel takes them all
+    size_t hits = 0;
+    for (int p = 0; p < 64; ++p) {
+      RayPacket packet;
+      while (packet.count < kPacketRays) {
+        const Vec3 target(u(rng), u(rng), 0.05);
+        packet.add(Ray(eye, target - eye), 0.0);
+      }
+      PacketResult result;
+      ASSERT_TRUE(tracer.trace(packet, result, counters));
+      for (int k = 0; k < packet.count; ++k) {
+        Counters brute;
+        const RayHit reference = brute_force_hit(scene, packet.rays[k], 0.0, brute);
+        ASSERT_EQ(result.hit[k].prim, reference.prim) << "distance " << distance << ", packet " << p << " lane " << k;
+        if (reference.hit()) {
+          EXPECT_EQ(result.hit[k].t, reference.t);
+        }
+        hits += reference.hit() ? 1 : 0;
+      }
+    }
+    EXPECT_GT(hits, 64u * kPacketRays / 10);
+    if (distance < 10.0) {
+      EXPECT_EQ(counters.accel_rays, 64u * kPacketRays);
+    } else {
+      EXPECT_EQ(counters.accel_rays, 0u);  // the k-d kernel's
+    }
+  }
 }
 
 }  // namespace

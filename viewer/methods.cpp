@@ -38,6 +38,7 @@ MakeResult make_ray_cast(const MethodInput& in) {
   options.budget.ms = o.frame_ms;
   options.budget.samples = o.samples;
   options.leaf_pixels = o.leaf_pixels > 0 ? o.leaf_pixels : FrustumCaster::kDefaultLeafPixels;
+  options.accel = !o.kd_kernel;
   return owned(std::make_unique<RayCastFrameRenderer>(in.scene, in.tree, options));
 }
 
@@ -209,10 +210,12 @@ const std::vector<ViewMethod>& view_methods() {
                   "--no-shadows, --cell-prims, --min-cell-prims", make_ray_cast<Method::Brute>),
       ray_casting("raywalk", "ray casting, each ray walked through the k-d tree",
                   "--no-shadows, --cell-prims, --min-cell-prims", make_ray_cast<Method::RayWalk>),
-      ray_casting("packet", "ray casting in packets of 4x4 pixels through the k-d tree",
-                  "--no-shadows, --cell-prims, --min-cell-prims", make_ray_cast<Method::Packet>),
-      ray_casting("frustum", "frustum casting through the k-d tree (the default)",
-                  "--frame-ms, --samples, --leaf-pixels, --no-shadows, --cell-prims, --min-cell-prims",
+      ray_casting("packet", "ray casting in packets of 4x4 pixels through Embree's BVH with frontier's exact tests",
+                  "--kd-kernel, --no-shadows, --cell-prims, --min-cell-prims", make_ray_cast<Method::Packet>),
+      ray_casting("frustum",
+                  "frustum casting through the k-d tree, the leaf frusta's packets through Embree's BVH with "
+                  "frontier's exact tests (the default)",
+                  "--frame-ms, --samples, --leaf-pixels, --kd-kernel, --no-shadows, --cell-prims, --min-cell-prims",
                   make_ray_cast<Method::Frustum>),
       immediate("imr", "immediate-mode ray casting of curved primitives",
                 "--order, --bound-slices, --back-sample-culling, --cull-back-faces, --no-shadows", make_imr),

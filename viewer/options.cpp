@@ -106,6 +106,9 @@ void add_method_options(CLI::App& app, ViewerOptions& o) {
       ->check(CLI::Range(0u, 1000000u));
   app.add_option("--leaf-pixels", o.leaf_pixels, "frusta up to N×N pixels resolve their pixels individually: as 4×4 ray packets in scenes of triangles, else walked one by one (paper: 2; default 16 for a model file, a twentieth of the width and at least 16 for a store's walk: 32 at 640, 64 at 1280)")
       ->check(CLI::Range(2, 4096));
+  app.add_flag("--kd-kernel", o.kd_kernel,
+               "model file, frustum and packet: trace the packets' rays through the k-d tree instead of Embree's BVH "
+               "(the same image, exactly; slower: for comparison)");
   app.add_flag("--no-shadows", o.no_shadows, "skip the deferred shadow effect");
   app.add_option("--visibility", o.visibility_text,
                  "visibility class: frustum-advance (frustum casting, default) | exhaustive | frustum-cull | "

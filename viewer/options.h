@@ -49,6 +49,7 @@ struct ViewerOptions {
   uint32_t cell_prims = 8, min_cell_prims = 0;
   bool cell_prims_given = false;  // --cell-prims on the command line (stores keep their own default)
   int leaf_pixels = 0;  // --leaf-pixels; 0: the method's own (frustum casting 16, a store's walk by its width)
+  bool kd_kernel = false;  // --kd-kernel: packets through the k-d tree, not Embree's BVH
 };
 
 // Registers every option of frontier-view with `app`, writing into `o`.

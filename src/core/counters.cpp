@@ -23,7 +23,7 @@ constexpr Field kFields[] = {
     {"shading_ops", &Counters::shading_ops},         {"specular_ops", &Counters::specular_ops},
     {"shadow_rays", &Counters::shadow_rays},         {"parks", &Counters::parks},
     {"packet_rays", &Counters::packet_rays},         {"packet_filter_tests", &Counters::packet_filter_tests},
-    {"packet_leaves", &Counters::packet_leaves},
+    {"packet_leaves", &Counters::packet_leaves},     {"accel_rays", &Counters::accel_rays},
 };
 
 }  // namespace

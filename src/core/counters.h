@@ -14,6 +14,7 @@ struct Counters {
   uint64_t packet_rays = 0;          // primary rays traced in packets (src/engine/packet.h)
   uint64_t packet_filter_tests = 0;  // lane x triangle edge tests of packets (before the exact test)
   uint64_t packet_leaves = 0;        // leaves packets entered (their lanes count in cell_visits)
+  uint64_t accel_rays = 0;           // packet rays (meeting the scene's bounds) traced through Embree's BVH (prim_accel.h)
   uint64_t samples = 0;              // pixels confirmed this frame
   uint64_t cells_touched = 0;        // distinct cells a frustum or ray entered
   uint64_t cell_visits = 0;          // cell entries counted with repetition

@@ -74,7 +74,10 @@ void FrustumCaster::begin(const View& view, SampleBuffer& buffer, CellMarks& mar
   ++frame_;
   grow_cell_cache(tree_.cells().size());
   compute_eye_terms(view);
-  if (gate_ == nullptr && packets_apply() && !packet_layout_) packet_layout_ = std::make_unique<PacketLayout>(scene_, tree_);
+  if (gate_ == nullptr && packets_apply()) {
+    if (use_accel_ && !accel_) accel_ = std::make_unique<PrimAccel>(PrimAccel::build(scene_));
+    if (!packet_layout_) packet_layout_ = std::make_unique<PacketLayout>(scene_, tree_);
+  }
   reset_workers(view.pixels());
   arenas_in_.clear();
   current_.clear();

@@ -53,6 +53,7 @@
 #include "src/core/counters.h"
 #include "src/engine/cell_gate.h"
 #include "src/engine/kdtree.h"
+#include "src/engine/prim_accel.h"
 #include "src/engine/ray_walk.h"
 #include "src/core/sample_buffer.h"
 #include "src/core/scene.h"
@@ -89,6 +90,10 @@ class FrustumCaster {
   // REQUIRES: pixels >= 2. Default kDefaultLeafPixels.
   static constexpr int kDefaultLeafPixels = 16;
   void set_leaf_pixels(int pixels) { leaf_ = pixels < 2 ? 2 : pixels; }
+  // In-memory scenes (no gate): packets trace through Embree's BVH over the scene with the same
+  // exact tests (prim_accel.h; built at the first begin()) or through the k-d tree, whichever
+  // traces faster (KernelChoice, measured as they run); false: the k-d tree alone.
+  void set_accel(bool on) { use_accel_ = on; }
 
   // Previews (in budgeted runs of a scene of triangles): each leaf
   // frustum first traces only points of its quadrant subdivision about 4 pixels apart (1/25 of
@@ -263,6 +268,9 @@ class FrustumCaster {
   // Leaves laid out for ray packets (resolve_by_packets), made on the first frame of a tree
   // that does not change (no gate); a paged tree's packets read its cells directly.
   std::unique_ptr<PacketLayout> packet_layout_;
+  bool use_accel_ = true;
+  std::unique_ptr<PrimAccel> accel_;
+  KernelChoice kernel_choice_;  // Embree's BVH or the k-d tree, whichever traces faster
   std::vector<Vec3> column_normal_;  // plane of pixel column x, oriented towards larger x
   std::vector<Vec3> row_normal_;     // plane of pixel row y, oriented towards larger y
 

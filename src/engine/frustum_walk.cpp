@@ -86,7 +86,8 @@ void FrustumCaster::resolve_by_packets(const Job& job, Worker& w, bool from_next
     return;
   }
   if (!w.packets) w.packets = std::make_unique<PacketTracer>(scene_, tree_);
-  w.packets->bind(marks_, gate_, gate_ == nullptr ? packet_layout_.get() : nullptr);
+  w.packets->bind(marks_, gate_, gate_ == nullptr ? packet_layout_.get() : nullptr,
+                  gate_ == nullptr && use_accel_ ? accel_.get() : nullptr, &kernel_choice_);
   if (preview_ && budgeted_ && job.refine == 0 && (job.x1 - job.x0 + 1) * (job.y1 - job.y0 + 1) > 2 * kPacketRays) {
     trace_preview(job, w, from_next_cell);
     Job rest = job;

@@ -4,9 +4,12 @@
 // picks the one the CPU runs.
 #include "src/engine/packet.h"
 
+#include "src/engine/prim_accel.h"
+
 #include <algorithm>
 #include <atomic>
 #include <bit>
+#include <chrono>
 #include <cmath>
 #include <immintrin.h>
 #include <limits>
@@ -107,8 +110,8 @@ size_t PacketLayout::bytes() const {
 }
 
 PacketTracer::PacketTracer(const Scene& scene, const KdTree& tree, CellMarks* marks, CellGate* gate,
-                           const PacketLayout* layout)
-    : scene_(scene), tree_(tree), marks_(marks), gate_(gate), layout_(layout) {
+                           const PacketLayout* layout, const PrimAccel* accel, KernelChoice* choice)
+    : scene_(scene), tree_(tree), marks_(marks), gate_(gate), layout_(layout), accel_(accel), choice_(choice) {
   tree_changed();
 }
 PacketTracer::~PacketTracer() = default;
@@ -199,6 +202,28 @@ std::atomic<TraceLanes> chosen_kernel{nullptr};
 
 bool PacketTracer::trace(const RayPacket& packet, PacketResult& out, Counters& counters) {
   if (packet.count <= 0) return false;
+  if (accel_ != nullptr && gate_ == nullptr) {
+    if (choice_ == nullptr) {
+      if (trace_accel(packet, out, counters)) return true;
+    } else {
+      // The kernel KernelChoice picks for this packet, timed when it asks.
+      bool timed = false;
+      const bool accel = choice_->use_accel(packets_++, timed);
+      const auto t0 = timed ? std::chrono::steady_clock::now() : std::chrono::steady_clock::time_point();
+      bool traced = accel ? trace_accel(packet, out, counters) : trace_kd(packet, out, counters);
+      if (traced && timed) {
+        const auto ns = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - t0);
+        choice_->record(accel, uint64_t(ns.count()), uint64_t(packet.count));
+      }
+      if (traced) return true;
+      if (accel) return trace_kd(packet, out, counters);
+      return trace_accel(packet, out, counters);  // the k-d kernel refused it (mixed signs)
+    }
+  }
+  return trace_kd(packet, out, counters);
+}
+
+bool PacketTracer::trace_kd(const RayPacket& packet, PacketResult& out, Counters& counters) {
   Soa s;
   if (!make_soa(packet, s)) return false;
   TraceLanes kernel = chosen_kernel.load(std::memory_order_relaxed);
@@ -207,6 +232,31 @@ bool PacketTracer::trace(const RayPacket& packet, PacketResult& out, Counters& c
     chosen_kernel.store(kernel, std::memory_order_relaxed);
   }
   kernel(scene_, tree_, layout_, marks_, gate_, slack_scale_, stack_, s, packet, out, counters);
+  counters.packet_rays += uint64_t(packet.count);
+  return true;
+}
+
+// Each lane through Embree's BVH over the tree's bounds (where the k-d kernel would look: from
+// its tmin up to its exit from the root, plus the slack); false, nothing traced, when Embree's
+// float rays may stray beyond the accelerator's margin for some lane (then the k-d kernel).
+bool PacketTracer::trace_accel(const RayPacket& packet, PacketResult& out, Counters& counters) {
+  double t0[kPacketRays], t1[kPacketRays];
+  bool inside[kPacketRays];
+  double reach = 0.0, dmax = 0.0;
+  for (int l = 0; l < packet.count; ++l) {
+    const Ray& r = packet.rays[l];
+    inside[l] = ray_box_interval(r, tree_.bounds(), t0[l], t1[l]) && std::max(t0[l], packet.tmin[l]) <= t1[l];
+    if (!inside[l]) continue;
+    t1[l] += cell_slack(t1[l], slack_scale_);
+    reach = std::max(reach, t1[l]);
+    dmax = std::max({dmax, std::abs(r.dir.x), std::abs(r.dir.y), std::abs(r.dir.z)});
+  }
+  if (!accel_->usable(packet.rays[0].origin, dmax, reach)) return false;
+  out.parked = 0;
+  for (int l = 0; l < packet.count; ++l) {
+    out.hit[l] = {};
+    if (inside[l]) accel_->trace(scene_, 0, packet.rays[l], packet.tmin[l], t1[l], out.hit[l], counters);
+  }
   counters.packet_rays += uint64_t(packet.count);
   return true;
 }

@@ -57,6 +57,8 @@ struct PacketResult {
 };
 
 struct PacketStackEntry;
+class PrimAccel;
+class KernelChoice;
 
 // The instruction sets the packet kernel is compiled for; the best one the CPU runs is used
 // unless use_packet_isa() says otherwise. Every one gives the same hits (tests run each one the
@@ -104,19 +106,26 @@ class PacketLayout {
 class PacketTracer {
  public:
   // `gate` and `marks` may be null (every cell present; no working set kept).
-  // With `layout` (built from the same scene and tree) leaves are read from it.
+  // With `layout` (built from the same scene and tree) leaves are read from it. With `accel`
+  // (over the same scene) and no gate, each ray is traced through Embree's BVH with the same
+  // exact tests instead, where PrimAccel::usable() allows (prim_accel.h; no cell is marked);
+  // with `choice` too, for the packets it gives to Embree's BVH (the faster kernel, measured).
   PacketTracer(const Scene& scene, const KdTree& tree, CellMarks* marks = nullptr, CellGate* gate = nullptr,
-               const PacketLayout* layout = nullptr);
+               const PacketLayout* layout = nullptr, const PrimAccel* accel = nullptr,
+               KernelChoice* choice = nullptr);
   ~PacketTracer();
   PacketTracer(PacketTracer&&) noexcept;
   // Where the next traces mark cells, ask for missing ones, and read leaves (see the constructor).
-  void bind(CellMarks* marks, CellGate* gate, const PacketLayout* layout) {
+  void bind(CellMarks* marks, CellGate* gate, const PacketLayout* layout, const PrimAccel* accel = nullptr,
+            KernelChoice* choice = nullptr) {
     marks_ = marks;
     gate_ = gate;
     layout_ = layout;
+    accel_ = accel;
+    choice_ = choice;
   }
   // Traces every lane; false (nothing traced, `out` untouched) when the lanes disagree on the
-  // sign of a direction component. Counters: cell_visits per lane and cell, cells_touched,
+  // sign of a direction component (through the k-d tree; Embree's BVH takes any packet). Counters: cell_visits per lane and cell, cells_touched,
   // primitives_tested per lane and reference, ray_primitive_tests and hits of the exact tests,
   // packet_filter_tests (lane × triangle edge tests) and packet_rays.
   bool trace(const RayPacket& packet, PacketResult& out, Counters& counters);
@@ -124,11 +133,16 @@ class PacketTracer {
   void tree_changed();
 
  private:
+  bool trace_accel(const RayPacket& packet, PacketResult& out, Counters& counters);
+  bool trace_kd(const RayPacket& packet, PacketResult& out, Counters& counters);
   const Scene& scene_;
   const KdTree& tree_;
   CellMarks* marks_;
   CellGate* gate_;
   const PacketLayout* layout_;
+  const PrimAccel* accel_;
+  KernelChoice* choice_;
+  uint64_t packets_ = 0;  // traced so far (KernelChoice::use_accel)
   double slack_scale_ = 1.0;
   std::vector<PacketStackEntry> stack_;
 };

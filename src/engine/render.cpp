@@ -46,6 +46,7 @@ Counters Renderer::render(const View& view, const RenderOptions& options, Sample
   if (options.method == Method::Frustum) {
     if (!caster_) caster_ = std::make_unique<FrustumCaster>(scene_, tree_, shader_, threads_);
     caster_->set_leaf_pixels(options.leaf_pixels);
+    caster_->set_accel(options.accel);
     caster_->begin(view, buffer, marks_, options.shade, options.shadows);
     caster_->run(options.budget, total);
   } else {
@@ -55,9 +56,15 @@ Counters Renderer::render(const View& view, const RenderOptions& options, Sample
     marks_.begin_frame();
     tbb::enumerable_thread_specific<Counters> local;
     if (options.method == Method::Packet && !layout_) layout_ = std::make_unique<PacketLayout>(scene_, tree_);
+    if (options.method == Method::Packet && options.accel && !accel_) {
+      accel_ = std::make_unique<PrimAccel>(PrimAccel::build(scene_));
+    }
+    const PrimAccel* accel = options.accel ? accel_.get() : nullptr;
     // A factory, not constructor arguments: those the container would keep copies of (the scene).
     tbb::enumerable_thread_specific<PacketTracer> tracers(
-        [&] { return PacketTracer(scene_, tree_, &marks_, nullptr, layout_.get()); });
+        [&] {
+          return PacketTracer(scene_, tree_, &marks_, nullptr, layout_.get(), accel, &kernel_choice_);
+        });
     const auto finish = [&](int x, int y, const Ray& ray, const RayHit& hit, Counters& c) {
       const size_t i = static_cast<size_t>(y) * static_cast<size_t>(view.width) + static_cast<size_t>(x);
       buffer.claim_exclusive(i);  // the blocks partition the image

@@ -35,6 +35,10 @@ struct RenderOptions {
   bool shadows = true;      // deferred shadow effect (only if the scene declares lights)
   FrameBudget budget;       // frustum casting only
   int leaf_pixels = FrustumCaster::kDefaultLeafPixels;  // frustum casting: walk-per-pixel size
+  // Frustum casting and packets: rays through Embree's BVH with frontier's exact tests
+  // (prim_accel.h) or through the k-d tree, whichever is faster on the scene (KernelChoice,
+  // measured as they run); false: the k-d tree alone. The same hits either way.
+  bool accel = true;
 };
 
 // Renders frames of one scene and tree, keeping what a viewer keeps between frames (the
@@ -58,6 +62,8 @@ class Renderer {
   CellMarks marks_;
   std::unique_ptr<FrustumCaster> caster_;  // made on first use
   std::unique_ptr<class PacketLayout> layout_;  // made on first use of Method::Packet
+  std::unique_ptr<PrimAccel> accel_;            // made on first use of Method::Packet with accel
+  KernelChoice kernel_choice_;                  // Method::Packet: Embree's BVH or the k-d tree
   struct Arena;
   std::unique_ptr<Arena> arena_;
 };
