@@ -727,5 +727,34 @@ TEST(EngineHardCases, EmbreeBvhHandsFarEyesToTheKdTree) {
   }
 }
 
+
+// KernelChoice: packets alternate until both kernels have traced enough rays, then the faster
+// (per ray) takes every packet but one in kExplore, and the choice follows new measurements.
+TEST(EngineKernelChoice, TakesTheFasterKernelAndKeepsMeasuringTheOther) {
+  KernelChoice choice;
+  bool timed = false;
+  EXPECT_TRUE(choice.use_accel(0, timed));
+  EXPECT_TRUE(timed);
+  EXPECT_FALSE(choice.use_accel(1, timed));
+  EXPECT_TRUE(timed);
+  const uint64_t n = KernelChoice::kMeasureRays;
+  choice.record(true, 300 * n, n);  // Embree's BVH: 300 ns a ray
+  choice.record(false, 100 * n, n);  // the k-d tree: 100
+  EXPECT_FALSE(choice.prefers_accel());
+  uint64_t accel = 0, timings = 0;
+  for (uint64_t p = 0; p < 64 * KernelChoice::kExplore; ++p) {
+    accel += choice.use_accel(p, timed) ? 1 : 0;
+    timings += timed ? 1 : 0;
+  }
+  EXPECT_EQ(accel, 64u);      // exploring, once in kExplore
+  EXPECT_EQ(timings, 128u);   // those and as many of the chosen kernel's
+  // Embree's BVH turns out faster where the view went: the choice follows.
+  choice.record(true, 10 * 64 * n, 64 * n);
+  EXPECT_TRUE(choice.prefers_accel());
+  accel = 0;
+  for (uint64_t p = 0; p < 64 * KernelChoice::kExplore; ++p) accel += choice.use_accel(p, timed) ? 1 : 0;
+  EXPECT_EQ(accel, 64u * (KernelChoice::kExplore - 1));
+}
+
 }  // namespace
 }  // namespace frontier
