@@ -255,7 +255,7 @@ bool PacketTracer::trace_accel(const RayPacket& packet, PacketResult& out, Count
   out.parked = 0;
   for (int l = 0; l < packet.count; ++l) {
     out.hit[l] = {};
-    if (inside[l]) accel_->trace(scene_, 0, packet.rays[l], packet.tmin[l], t1[l], out.hit[l], counters);
+    if (inside[l]) accel_->trace(scene_, packet.rays[l], packet.tmin[l], t1[l], out.hit[l], counters);
   }
   counters.packet_rays += uint64_t(packet.count);
   return true;

@@ -15,14 +15,6 @@ namespace frontier {
 
 namespace {
 
-// Bytes the device allocated on this thread, while a build runs (the memory monitor's count).
-thread_local int64_t tls_allocated = 0;
-
-bool monitor(void*, ssize_t bytes, bool) {
-  tls_allocated += int64_t(bytes);
-  return true;
-}
-
 void report_error(void*, RTCError code, const char* message) {
   std::fprintf(stderr, "frontier: Embree error %d: %s\n", int(code), message != nullptr ? message : "");
 }
@@ -36,7 +28,6 @@ RTCDevice device() {
       std::abort();
     }
     rtcSetDeviceErrorFunction(created, report_error, nullptr);
-    rtcSetDeviceMemoryMonitorFunction(created, monitor, nullptr);
     return created;
   }();
   return d;
@@ -75,8 +66,7 @@ void bounds(const RTCBoundsFunctionArguments* args) {
 // What the intersect callback reads: the one ray being traced (rtcIntersect1).
 struct TraceContext {
   RTCIntersectContext context;  // first: Embree hands the callback a pointer to it
-  const Scene* world;
-  uint32_t first;
+  const Scene* scene;
   const Ray* ray;
   double tmin, tmax;
   RayHit* best;
@@ -86,10 +76,10 @@ struct TraceContext {
 void intersect(const RTCIntersectFunctionNArguments* args) {
   if (args->valid[0] != -1) return;
   const auto* c = reinterpret_cast<const TraceContext*>(args->context);
-  const uint32_t prim = c->first + args->primID;
+  const uint32_t prim = args->primID;
   RayHit& best = *c->best;
   double t = 0.0;
-  const bool hit = c->world->intersect(prim, *c->ray, c->tmin, std::min(c->tmax, best.t), t);
+  const bool hit = c->scene->intersect(prim, *c->ray, c->tmin, std::min(c->tmax, best.t), t);
   const RayHit before = best;
   record_test(hit, prim, t, best, *c->counters);
   if (best.prim != before.prim || best.t != before.t) {
@@ -148,7 +138,6 @@ PrimAccel PrimAccel::build(const Scene& scene) {
   const Aabb box = scene.bounds();
   // 2^-16 of the diagonal, and never below what the centre's own rounding could move a box.
   BuildInput input{&scene, box.center(), 0x1p-16 * glm::length(box.extent()) + 0x1p-40 * box.magnitude()};
-  tls_allocated = 0;
   RTCScene rtc = rtcNewScene(dev);
   rtcSetSceneFlags(rtc, RTC_SCENE_FLAG_ROBUST);
   rtcSetSceneBuildQuality(rtc, RTC_BUILD_QUALITY_MEDIUM);
@@ -165,7 +154,6 @@ PrimAccel PrimAccel::build(const Scene& scene) {
   // The bounds callback is done with `input`: only the intersect callback runs from now on.
   rtcSetGeometryUserData(rtcGetGeometry(rtc, 0), nullptr);
   out.handle_ = rtc;
-  out.bytes_ = uint64_t(std::max<int64_t>(tls_allocated, 0));
   out.margin_ = input.margin;
   out.centre_ = input.centre;
   return out;
@@ -173,7 +161,6 @@ PrimAccel PrimAccel::build(const Scene& scene) {
 
 PrimAccel::PrimAccel(PrimAccel&& other) noexcept
     : handle_(std::exchange(other.handle_, nullptr)),
-      bytes_(other.bytes_),
       margin_(other.margin_),
       centre_(other.centre_) {}
 
@@ -181,7 +168,6 @@ PrimAccel& PrimAccel::operator=(PrimAccel&& other) noexcept {
   if (this != &other) {
     if (handle_ != nullptr) rtcReleaseScene(static_cast<RTCScene>(handle_));
     handle_ = std::exchange(other.handle_, nullptr);
-    bytes_ = other.bytes_;
     margin_ = other.margin_;
     centre_ = other.centre_;
   }
@@ -201,12 +187,11 @@ bool PrimAccel::usable(const Vec3& origin, double dmax, double tmax) const {
   return 0x1p-22 * (m + 3.0 * tmax * dmax) < margin_;
 }
 
-void PrimAccel::trace(const Scene& world, uint32_t first, const Ray& ray, double tmin, double tmax, RayHit& best,
+void PrimAccel::trace(const Scene& scene, const Ray& ray, double tmin, double tmax, RayHit& best,
                       Counters& counters) const {
   TraceContext c;
   rtcInitIntersectContext(&c.context);
-  c.world = &world;
-  c.first = first;
+  c.scene = &scene;
   c.ray = &ray;
   c.tmin = tmin;
   c.tmax = tmax;

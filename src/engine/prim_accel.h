@@ -17,7 +17,7 @@
 //     its far end is that hit's t rounded up, so every box that may hold a nearer hit (or an
 //     equal one of a lower primitive: ties go to the lower primitive, as everywhere) is visited.
 // So the hits are those of the k-d tree the accelerator stands beside, nearest first, ties to
-// the lower primitive (tests/engine_tests.cpp checks every primitive kind against brute force).
+// the lower primitive (tests/test_engine.cpp checks every primitive kind against brute force).
 //
 // Frustum casting and ray packets of an in-memory scene trace their packets' rays through it
 // (FrustumCaster, Renderer): Embree's SIMD BVH of boxes tests fewer primitives per ray than the
@@ -75,22 +75,17 @@ class PrimAccel {
   PrimAccel& operator=(const PrimAccel&) = delete;
 
   bool empty() const { return handle_ == nullptr; }
-  // Memory Embree allocated for it (its BVH), as its device reported while it was built.
-  uint64_t bytes() const { return bytes_; }
   double margin() const { return margin_; }
   // Whether a ray from `origin` with direction components up to `dmax` (per axis) can be traced
   // here up to t = tmax (see the header's comment).
   bool usable(const Vec3& origin, double dmax, double tmax) const;
 
-  // One ray: the nearest hit of primitives first .. first+size()-1 of `world` (the accelerator's
-  // primitive i is world primitive first + i) with tmin <= t <= min(tmax, best.t) goes into
-  // `best` (ties: the lower primitive); counts the exact tests as ray walking does.
-  void trace(const Scene& world, uint32_t first, const Ray& ray, double tmin, double tmax, RayHit& best,
-             Counters& counters) const;
+  // One ray: the nearest hit with tmin <= t <= min(tmax, best.t) of the scene it was built over
+  // goes into `best` (ties: the lower primitive); counts the exact tests as ray walking does.
+  void trace(const Scene& scene, const Ray& ray, double tmin, double tmax, RayHit& best, Counters& counters) const;
 
  private:
   void* handle_ = nullptr;  // RTCScene
-  uint64_t bytes_ = 0;
   double margin_ = 0.0;
   Vec3 centre_{0.0};
 };
