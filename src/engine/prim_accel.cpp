@@ -93,7 +93,6 @@ void intersect(const RTCIntersectFunctionNArguments* args) {
 
 void occluded(const RTCOccludedFunctionNArguments*) {}
 
-
 }  // namespace
 
 bool KernelChoice::prefers_accel() const {

@@ -8,7 +8,7 @@
 // skipped:
 //   - Embree works relative to the scene's centre (the boxes and the rays' origins are moved by
 //     it in double precision first), so a model far from the origin loses nothing;
-//   - every box is widened by margin() (2^-16 of the scene's diagonal): more than the float ray
+//   - every box is widened by a margin (2^-16 of the scene's diagonal): more than the float ray
 //     Embree walks can stray from the double one, 2^-24 of the eye's and the point's distance
 //     from the centre (times four, for the rounding of Embree's own arithmetic, robust mode); a
 //     ray for which that bound exceeds the margin (an eye some 16 scene sizes away) is not
@@ -75,7 +75,6 @@ class PrimAccel {
   PrimAccel& operator=(const PrimAccel&) = delete;
 
   bool empty() const { return handle_ == nullptr; }
-  double margin() const { return margin_; }
   // Whether a ray from `origin` with direction components up to `dmax` (per axis) can be traced
   // here up to t = tmax (see the header's comment).
   bool usable(const Vec3& origin, double dmax, double tmax) const;
