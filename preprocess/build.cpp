@@ -965,6 +965,7 @@ class StoreBuilder {
     };
     ProxySimplifyStats stats;
     ProxyMesh proxy = simplify_proxy(merged, proxy_options_, &stats, &region, &measure);
+    if (!stats.kept_input) shade_proxy(merged, proxy);  // a kept input keeps its own normals
     merged = ProxyMesh{};
     proxy.error = std::max(proxy.error, children_error);
     out.shell = stats.shell;

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <random>
 
 namespace frontier {
 namespace {
@@ -368,6 +369,55 @@ TEST(Effects, DeclaredLightsCastShadowRaysAndSpecularOnlyWhenAsked) {
   options.shade = false;
   const Counters visibility = render_frame(lit, tree, view, options, buffer);
   EXPECT_EQ(visibility.shading_ops, 0u);
+}
+
+}  // namespace
+}  // namespace frontier
+
+namespace frontier {
+namespace {
+
+TEST(Shading, HeadlightFastPathEqualsTheGeneralPathWithAndWithoutShadingNormals) {
+  // Triangles under the headlight alone take a short path (shading.cpp); it must colour every
+  // hit as lit() does with the shading normal, flat triangles and interpolated normals alike.
+  for (const bool normals : {false, true}) {
+    Scene scene;
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    for (int i = 0; i < 40; ++i) {
+      const Vec3 c(u(rng) * 5, u(rng) * 5, u(rng) * 5);
+      const Triangle t{c + Vec3(u(rng), u(rng), u(rng)), c + Vec3(u(rng), u(rng), u(rng)), c + Vec3(u(rng), u(rng), u(rng))};
+      const std::array<Vec3, 3> n = {glm::normalize(Vec3(u(rng), u(rng), u(rng))),
+                                     glm::normalize(Vec3(u(rng), u(rng), u(rng))),
+                                     glm::normalize(Vec3(u(rng), u(rng), u(rng)))};
+      scene.add_triangle(t, uint32_t(i), 0, normals ? &n : nullptr);
+    }
+    const KdTree tree = KdTree::build(scene, {});
+    const Shader shader(scene, tree);
+    ASSERT_TRUE(shader.effects().headlight);
+    ASSERT_FALSE(shader.effects().specular);
+    int compared = 0;
+    for (uint32_t i = 0; i < scene.size(); ++i) {
+      const Triangle& t = scene.triangles[scene.prims[i].index];
+      for (int k = 0; k < 5; ++k) {
+        double a = std::abs(u(rng)), b = std::abs(u(rng));
+        if (a + b > 1.0) a = 1.0 - a, b = 1.0 - b;
+        const Vec3 p = t.v0 + a * (t.v1 - t.v0) + b * (t.v2 - t.v0);
+        const Vec3 eye(u(rng) * 20, u(rng) * 20, 20.0 + u(rng));
+        const Ray ray(eye, p - eye);
+        const double hit_t = glm::length(p - eye);
+        Counters counters;
+        const Rgb fast = shader.shade(i, ray, hit_t, false, counters);
+        const Rgb general =
+            shader.shade_surface(scene.prims[i].material, scene.shading_normal(i, p, ray), ray, hit_t, counters);
+        EXPECT_NEAR(fast.r, general.r, 1e-5) << "normals " << normals << " prim " << i;
+        EXPECT_NEAR(fast.g, general.g, 1e-5);
+        EXPECT_NEAR(fast.b, general.b, 1e-5);
+        ++compared;
+      }
+    }
+    EXPECT_EQ(compared, 200);
+  }
 }
 
 }  // namespace

@@ -297,6 +297,139 @@ TEST(Proxy, SimplifiedGridKeepsItsBoundAndTarget) {
   }
 }
 
+// A smooth bump field z = 2 sin(0.3 x) cos(0.2 y) over [0, n]^2 at `origin`, two triangles a
+// unit square; with `flip`, every other triangle reversed (a soup without consistent winding).
+Scene bump_field(const Vec3& origin, int n, bool flip) {
+  Scene s;
+  auto z = [](double x, double y) { return std::sin(x * 0.3) * std::cos(y * 0.2) * 2.0; };
+  for (int y = 0; y < n; ++y) {
+    for (int x = 0; x < n; ++x) {
+      const Vec3 a = origin + Vec3(x, y, z(x, y)), b = origin + Vec3(x + 1, y, z(x + 1, y));
+      const Vec3 c = origin + Vec3(x + 1, y + 1, z(x + 1, y + 1)), d = origin + Vec3(x, y + 1, z(x, y + 1));
+      s.add_triangle({a, b, c}, static_cast<uint32_t>(s.size()), 0);
+      if (flip && (x + y) % 2 == 0) {
+        s.add_triangle({a, d, c}, static_cast<uint32_t>(s.size()), 0);
+      } else {
+        s.add_triangle({a, c, d}, static_cast<uint32_t>(s.size()), 0);
+      }
+    }
+  }
+  return s;
+}
+
+Vec3 bump_normal(const Vec3& p) {  // the surface's unit normal at p (relative to its origin)
+  const double dx = 0.3 * std::cos(p.x * 0.3) * std::cos(p.y * 0.2) * 2.0;
+  const double dy = -0.2 * std::sin(p.x * 0.3) * std::sin(p.y * 0.2) * 2.0;
+  return glm::normalize(Vec3(-dx, -dy, 1.0));
+}
+
+TEST(Proxy, ShadingNormalsFollowTheSurfaceTheProxyReplaces) {
+  // A coarse proxy of a smooth surface: its corner normals lie closer to the surface's normals
+  // than its flat faces do, are unit, and say the same far from the origin and for a soup whose
+  // triangles disagree on their winding.
+  for (const bool flip : {false, true}) {
+    for (const Vec3 origin : {Vec3(0.0), Vec3(1e6, -1e6, 1e6)}) {
+      const Scene s = bump_field(origin, 40, flip);
+      ProxyOptions options;
+      options.target_triangles = 60;
+      const ProxyMesh input = proxy_input(s, options);
+      EXPECT_TRUE(input.normals.empty());
+      ProxyMesh proxy = simplify_proxy(input, options);
+      ASSERT_GT(input.triangle_count(), proxy.triangle_count());
+      shade_proxy(input, proxy);
+      ASSERT_EQ(proxy.normals.size(), 3 * proxy.triangle_count());
+      double shaded = 0.0, flat = 0.0;
+      for (size_t t = 0; t < proxy.triangle_count(); ++t) {
+        const Vec3 &a = proxy.positions[proxy.indices[3 * t]], &b = proxy.positions[proxy.indices[3 * t + 1]],
+                   &c = proxy.positions[proxy.indices[3 * t + 2]];
+        const Vec3 face = glm::normalize(glm::cross(b - a, c - a));
+        const Vec3* corners[3] = {&a, &b, &c};
+        for (int k = 0; k < 3; ++k) {
+          const Vec3& n = proxy.normals[3 * t + size_t(k)];
+          EXPECT_NEAR(glm::length(n), 1.0, 1e-9);
+          EXPECT_GT(glm::dot(n, face), 0.0) << "a corner normal turned away from its face";
+          const Vec3 truth = bump_normal(*corners[k] - origin);
+          shaded += std::acos(std::min(1.0, std::abs(glm::dot(n, truth))));
+          flat += std::acos(std::min(1.0, std::abs(glm::dot(face, truth))));
+        }
+      }
+      // (0.42 and 0.77 when written: meshoptimizer takes a soup's every reversed edge for a
+      // border and simplifies it worse, so its faces are farther off to begin with.)
+      EXPECT_LT(shaded, (flip ? 0.85 : 0.6) * flat) << "flip " << flip << " origin " << origin.x;
+      // Through a page's scene: one normal triple per triangle, the same ones.
+      const Scene scene = proxy_scene(proxy);
+      ASSERT_EQ(scene.triangle_normals.size(), scene.triangles.size());
+      EXPECT_EQ(scene.triangle_normals[0][1], proxy.normals[1]);
+    }
+  }
+}
+
+TEST(Proxy, ShadingNormalsKeepABoxsEdgesSharp) {
+  // A box whose faces are 8 x 8 grids, simplified: flat faces meeting at right angles stay flat.
+  for (const bool flip : {false, true}) {
+    Scene s;
+    const auto face = [&](const Vec3& o, const Vec3& u, const Vec3& v) {
+      for (int i = 0; i < 8; ++i) {
+        for (int j = 0; j < 8; ++j) {
+          const Vec3 a = o + u * (i / 8.0) + v * (j / 8.0), b = o + u * ((i + 1) / 8.0) + v * (j / 8.0);
+          const Vec3 c = o + u * ((i + 1) / 8.0) + v * ((j + 1) / 8.0), d = o + u * (i / 8.0) + v * ((j + 1) / 8.0);
+          s.add_triangle({a, b, c}, 0, 0);
+          if (flip && (i + j) % 2 == 0) {
+            s.add_triangle({a, d, c}, 0, 0);
+          } else {
+            s.add_triangle({a, c, d}, 0, 0);
+          }
+        }
+      }
+    };
+    const Vec3 X(4, 0, 0), Y(0, 3, 0), Z(0, 0, 2), O(10, 20, 30);
+    face(O, Y, X);
+    face(O + Z, X, Y);
+    face(O, X, Z);
+    face(O + Y, Z, X);
+    face(O, Z, Y);
+    face(O + X, Y, Z);
+    ProxyOptions options;
+    options.target_triangles = 24;
+    const ProxyMesh input = proxy_input(s, options);
+    ProxyMesh proxy = simplify_proxy(input, options);
+    ASSERT_LT(proxy.triangle_count(), input.triangle_count());
+    shade_proxy(input, proxy);
+    ASSERT_EQ(proxy.normals.size(), 3 * proxy.triangle_count());
+    // Reversed triangles make meshoptimizer cut corners (see above): there every corner normal
+    // stays within the crease angle of its face; without, every one is its face's.
+    const double crease = std::cos(kProxyCreaseDegrees * M_PI / 180.0);
+    for (size_t t = 0; t < proxy.triangle_count(); ++t) {
+      const Vec3 &a = proxy.positions[proxy.indices[3 * t]], &b = proxy.positions[proxy.indices[3 * t + 1]],
+                 &c = proxy.positions[proxy.indices[3 * t + 2]];
+      const Vec3 f = glm::normalize(glm::cross(b - a, c - a));
+      for (int k = 0; k < 3; ++k) {
+        const double agree = glm::dot(proxy.normals[3 * t + size_t(k)], f);
+        EXPECT_GE(agree, crease - 1e-12) << "flip " << flip;
+        if (!flip) {
+          EXPECT_GT(agree, 1.0 - 1e-9);
+        }
+      }
+    }
+  }
+}
+
+TEST(Proxy, MergeKeepsNormalsAndGivesFaceNormalsToMeshesWithout) {
+  Scene a, b;
+  a.add_triangle({Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0)}, 1, 0);
+  b.add_triangle({Vec3(1, 0, 0), Vec3(1, 1, 1), Vec3(0, 1, 0)}, 2, 0);
+  ProxyMesh with = proxy_input(a, {});
+  const Vec3 tilted = glm::normalize(Vec3(0.1, 0.2, 1.0));
+  with.normals = {tilted, tilted, tilted};
+  const ProxyMesh merged = merge_proxies(with, proxy_input(b, {}));
+  ASSERT_EQ(merged.triangle_count(), 2u);
+  ASSERT_EQ(merged.normals.size(), 6u);
+  EXPECT_EQ(merged.normals[0], tilted);
+  const Vec3 face = glm::normalize(glm::cross(Vec3(0, 1, 1), Vec3(-1, 1, 0)));
+  for (int k = 3; k < 6; ++k) EXPECT_NEAR(glm::dot(merged.normals[size_t(k)], face), 1.0, 1e-12);
+  EXPECT_TRUE(merge_proxies(proxy_input(a, {}), proxy_input(b, {})).normals.empty());
+}
+
 TEST(Proxy, DegenerateInputGivesFiniteBounds) {
   ProxyOptions options;
   options.target_triangles = 4;
@@ -761,7 +894,7 @@ TEST(BuildStoreProxy, ProxyPagesOfADracoStoreAreMeshoptByDefaultWithTheSameTrian
   auto draco = StoreModel::open((scratch() / "proxy_draco.frontier").string());
   ASSERT_TRUE(meshopt && draco);
   ASSERT_EQ((*meshopt)->proxies().size(), (*draco)->proxies().size());
-  size_t compared = 0;
+  size_t compared = 0, with_normals = 0;
   for (uint32_t n = 0; n < (*meshopt)->nodes().size(); ++n) {
     const StoreProxy* a = (*meshopt)->proxy(n);
     const StoreProxy* b = (*draco)->proxy(n);
@@ -795,9 +928,19 @@ TEST(BuildStoreProxy, ProxyPagesOfADracoStoreAreMeshoptByDefaultWithTheSameTrian
       return out;
     };
     EXPECT_EQ(corners(sa), corners(sb)) << "node " << n;
+    // Simplified proxies carry shading normals (proxy.h, shade_proxy): unit, one per corner.
+    for (const Scene* s : {&sa, &sb}) {
+      if (s->triangle_normals.empty()) continue;
+      ASSERT_EQ(s->triangle_normals.size(), s->triangles.size()) << "node " << n;
+      for (const auto& tn : s->triangle_normals) {
+        for (const Vec3& v : tn) EXPECT_NEAR(glm::length(v), 1.0, 1e-2) << "node " << n;
+      }
+      ++with_normals;
+    }
     ++compared;
   }
   EXPECT_GT(compared, 7u);
+  EXPECT_GT(with_normals, 2u);
   // The cells keep the store's codec.
   for (const StoreCell& c : (*meshopt)->cells()) {
     if (c.page == StoreCell::kNoPage) continue;

@@ -32,13 +32,15 @@ Rgb Shader::shade(uint32_t prim, const Ray& ray, double t, bool with_shadows, Co
   const PrimRef& ref = scene_.prims[prim];
   static const Material kDefault;
   const Material& m = ref.material < scene_.materials.size() ? scene_.materials[ref.material] : kDefault;
-  if (effects_.headlight && !effects_.specular && ref.kind == PrimKind::Triangle && scene_.triangle_normals.empty()) {
-    // What lit() computes for a flat triangle under the headlight alone, without its general
+  if (effects_.headlight && !effects_.specular && ref.kind == PrimKind::Triangle) {
+    // What lit() computes for a triangle under the headlight alone, without its general
     // machinery (a third of a fill's time per pixel): the normal faces the ray, so n · (-d) is
-    // |n · d| for the unit n (a degenerate triangle's normal is +z, as normal_of says).
+    // |n · d| for the unit n (a degenerate triangle's normal is +z, as normal_of says). With
+    // shading normals, n is shading_normal()'s (interpolated at the hit).
     ++counters.shading_ops;
     const Triangle& tri = scene_.triangles[ref.index];
-    const Vec3 n = glm::cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
+    const Vec3 n = scene_.triangle_normals.empty() ? glm::cross(tri.v1 - tri.v0, tri.v2 - tri.v0)
+                                                   : scene_.shading_normal(prim, ray.at(t), ray);
     const double len = glm::length(n);
     const double ndotl = len > 0.0 ? std::abs(glm::dot(n, ray.dir)) / len : std::abs(ray.dir.z);
     Vec3 color = 0.1 * m.color;

@@ -189,11 +189,25 @@ ProxyMesh merge_proxies(std::span<const ProxyMesh* const> meshes) {
   for (const ProxyMesh* m : meshes) triangles += m->triangle_count();
   MeshWelder weld(out, triangles);
   uint64_t dropped = 0, total = 0;
+  const bool normals = std::any_of(meshes.begin(), meshes.end(), [](const ProxyMesh* m) { return !m->normals.empty(); });
+  if (normals) out.normals.reserve(3 * triangles);
   for (const ProxyMesh* m : meshes) {
     for (size_t t = 0; t < m->triangle_count(); ++t) {
       const uint32_t* k = &m->indices[3 * t];
-      if (!weld.add(m->positions[k[0]], m->positions[k[1]], m->positions[k[2]], m->sources[t], m->materials[t], true)) {
+      const Vec3 &a = m->positions[k[0]], &b = m->positions[k[1]], &c = m->positions[k[2]];
+      if (!weld.add(a, b, c, m->sources[t], m->materials[t], true)) {
         ++dropped;
+        continue;
+      }
+      if (!normals) continue;
+      if (!m->normals.empty()) {
+        out.normals.insert(out.normals.end(), m->normals.begin() + std::ptrdiff_t(3 * t),
+                           m->normals.begin() + std::ptrdiff_t(3 * t + 3));
+      } else {
+        const Vec3 n = glm::cross(b - a, c - a);
+        const double len = glm::length(n);
+        const Vec3 face = len > 0.0 ? n / len : Vec3(0.0, 0.0, 1.0);
+        out.normals.insert(out.normals.end(), {face, face, face});
       }
     }
     out.error = std::max(out.error, m->error);
@@ -457,14 +471,109 @@ ProxyMesh simplify_proxy(const ProxyMesh& input, const ProxyOptions& options, Pr
   return out;
 }
 
+namespace {
+// The barycentric coordinates of the point of triangle (a, b, c) nearest p (Ericson, "Real-Time
+// Collision Detection" 5.1.5).
+Vec3 nearest_barycentric(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 ab = b - a, ac = c - a, ap = p - a;
+  const double d1 = glm::dot(ab, ap), d2 = glm::dot(ac, ap);
+  if (d1 <= 0.0 && d2 <= 0.0) return {1.0, 0.0, 0.0};
+  const Vec3 bp = p - b;
+  const double d3 = glm::dot(ab, bp), d4 = glm::dot(ac, bp);
+  if (d3 >= 0.0 && d4 <= d3) return {0.0, 1.0, 0.0};
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) {
+    const double v = d1 / (d1 - d3);
+    return {1.0 - v, v, 0.0};
+  }
+  const Vec3 cp = p - c;
+  const double d5 = glm::dot(ab, cp), d6 = glm::dot(ac, cp);
+  if (d6 >= 0.0 && d5 <= d6) return {0.0, 0.0, 1.0};
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) {
+    const double w = d2 / (d2 - d6);
+    return {1.0 - w, 0.0, w};
+  }
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0) {
+    const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    return {0.0, 1.0 - w, w};
+  }
+  const double den = va + vb + vc;
+  if (!(den > 0.0)) return {1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0};  // degenerate
+  const double v = vb / den, w = vc / den;
+  return {1.0 - v - w, v, w};
+}
+}  // namespace
+
+void shade_proxy(const ProxyMesh& input, ProxyMesh& proxy) {
+  proxy.normals.clear();
+  const size_t tris = proxy.triangle_count();
+  if (tris == 0) return;
+  std::vector<Vec3> face(tris);
+  for (size_t t = 0; t < tris; ++t) {
+    const uint32_t* k = &proxy.indices[3 * t];
+    const Vec3 n = glm::cross(proxy.positions[k[1]] - proxy.positions[k[0]], proxy.positions[k[2]] - proxy.positions[k[0]]);
+    const double len = glm::length(n);
+    face[t] = len > 0.0 ? n / len : Vec3(0.0);
+  }
+  // Each proxy corner's share of the input's area-weighted normals.
+  std::vector<Vec3> corner(3 * tris, Vec3(0.0));
+  const TriangleBvh bvh(proxy.positions, proxy.indices);
+  for (size_t i = 0; i < input.triangle_count(); ++i) {
+    const uint32_t* k = &input.indices[3 * i];
+    const Vec3 &a = input.positions[k[0]], &b = input.positions[k[1]], &c = input.positions[k[2]];
+    Vec3 m = 0.5 * glm::cross(b - a, c - a);  // length: the area
+    if (!input.normals.empty()) {
+      const Vec3 mean = input.normals[3 * i] + input.normals[3 * i + 1] + input.normals[3 * i + 2];
+      const double len = glm::length(mean);
+      if (len > 0.0) m = mean * (glm::length(m) / len);
+    }
+    const Vec3 centroid = (a + b + c) / 3.0;
+    const uint32_t t = bvh.nearest(centroid);
+    if (t == UINT32_MAX || !std::isfinite(glm::dot(m, m))) continue;
+    if (glm::dot(m, face[t]) < 0.0) m = -m;
+    const uint32_t* q = &proxy.indices[3 * t];
+    const Vec3 w = nearest_barycentric(centroid, proxy.positions[q[0]], proxy.positions[q[1]], proxy.positions[q[2]]);
+    for (int j = 0; j < 3; ++j) corner[3 * t + size_t(j)] += w[j] * m;
+  }
+  // Per corner, the sum over the corners around its vertex whose faces lie within the crease
+  // angle of its own (either way round: a soup's windings disagree), turned to agree with it.
+  std::vector<uint32_t> first(proxy.positions.size() + 1, 0), around(3 * tris);
+  for (uint32_t v : proxy.indices) ++first[v + 1];
+  for (size_t v = 0; v < proxy.positions.size(); ++v) first[v + 1] += first[v];
+  std::vector<uint32_t> fill(first.begin(), first.end() - 1);
+  for (size_t c = 0; c < 3 * tris; ++c) around[fill[proxy.indices[c]]++] = uint32_t(c);
+  const double crease = std::cos(kProxyCreaseDegrees * M_PI / 180.0);
+  proxy.normals.resize(3 * tris);
+  for (size_t c = 0; c < 3 * tris; ++c) {
+    const size_t t = c / 3;
+    const uint32_t v = proxy.indices[c];
+    Vec3 n(0.0);
+    for (uint32_t k = first[v]; k < first[v + 1]; ++k) {
+      const uint32_t other = around[k];
+      const double agree = glm::dot(face[other / 3], face[t]);
+      if (other == c || std::abs(agree) >= crease) n += (agree < 0.0 ? -1.0 : 1.0) * corner[other];
+    }
+    const double len = glm::length(n);
+    n = len > 0.0 && std::isfinite(len) ? n / len : face[t];
+    if (face[t] != Vec3(0.0) && glm::dot(n, face[t]) < crease) n = face[t];
+    proxy.normals[c] = n == Vec3(0.0) ? Vec3(0.0, 0.0, 1.0) : n;
+  }
+}
+
 Scene proxy_scene(const ProxyMesh& mesh) {
   Scene scene;
   scene.triangles.reserve(mesh.triangle_count());
   scene.prims.reserve(mesh.triangle_count());
+  const bool normals = mesh.normals.size() == 3 * mesh.triangle_count() && !mesh.normals.empty();
   for (size_t t = 0; t < mesh.triangle_count(); ++t) {
     const uint32_t* k = &mesh.indices[3 * t];
+    const std::array<Vec3, 3> n = normals ? std::array<Vec3, 3>{mesh.normals[3 * t], mesh.normals[3 * t + 1],
+                                                                mesh.normals[3 * t + 2]}
+                                          : std::array<Vec3, 3>{};
     scene.add_triangle({mesh.positions[k[0]], mesh.positions[k[1]], mesh.positions[k[2]]}, mesh.sources[t],
-                       mesh.materials[t]);
+                       mesh.materials[t], normals ? &n : nullptr);
   }
   return scene;
 }

@@ -65,6 +65,9 @@ struct ProxyMesh {
   std::vector<uint32_t> indices;    // three per triangle, into positions
   std::vector<uint32_t> sources;    // per triangle: the input primitive it stands for
   std::vector<uint32_t> materials;  // per triangle
+  // Empty (flat shading: the original triangles themselves), or three per triangle: unit shading
+  // normals at its corners (shade_proxy), what the original surface's normals average to there.
+  std::vector<Vec3> normals;
   double error = 0.0;               // object-space bound on the distance to the original geometry
   double chord_error = 0.0;         // the largest tessellation (and snapping) error of the curved
                                     // primitives beneath: original geometry is their surface
@@ -112,6 +115,7 @@ ProxyMesh proxy_input(const Scene& cell, const ProxyOptions& options);
 
 // Both meshes in one, welded by exact position; a triangle that appears in both (same corners,
 // same orientation) is kept once. error = max of both; subtree_triangles = sum less duplicates.
+// When either has normals the result has them (a mesh without: its face normals).
 ProxyMesh merge_proxies(const ProxyMesh& lower, const ProxyMesh& upper);
 // The same for any number of meshes (a node's descendants some levels down).
 ProxyMesh merge_proxies(std::span<const ProxyMesh* const> meshes);
@@ -132,7 +136,18 @@ ProxyMesh simplify_proxy(const ProxyMesh& input, const ProxyOptions& options, Pr
 // point of the input, the largest over the proxy's samples.
 double measured_distance(const ProxyMesh& input, const ProxyMesh& proxy);
 
-// The mesh as a Scene of triangles (source and material kept), to encode as a page.
+// Gives `proxy` shading normals (ProxyMesh::normals) that make it look like `input`, the mesh it
+// was simplified from: each input triangle's normal, weighted by its area (its corner normals'
+// mean where `input` has normals), goes to the proxy triangle nearest its centroid, shared among
+// that triangle's corners by the barycentric coordinates of the nearest point; a corner's normal
+// is the sum at its vertex over the triangles around it (turned to agree in orientation), unless
+// that lies more than kProxyCreaseDegrees from its triangle's own normal (a crease: a box's edge,
+// a wall's two sides), where the face normal stays. A proxy with few large triangles so shades
+// like the many small ones it replaces, instead of in flat facets; flat parts stay flat.
+constexpr double kProxyCreaseDegrees = 40.0;
+void shade_proxy(const ProxyMesh& input, ProxyMesh& proxy);
+
+// The mesh as a Scene of triangles (source, material and normals kept), to encode as a page.
 Scene proxy_scene(const ProxyMesh& mesh);
 
 }  // namespace frontier

@@ -38,10 +38,12 @@ void release_tail(std::vector<T>& v) {
   const uintptr_t hi = (reinterpret_cast<uintptr_t>(v.data() + v.capacity())) & ~(kHuge - 1);
   if (hi > lo) (void)madvise(reinterpret_cast<void*>(lo), hi - lo, MADV_DONTNEED);
 }
-// Bytes of the world's arrays that a cell's scene and subtree occupy once grafted.
-uint64_t charge_of(const Scene& s, const KdTree& t) {
+// Bytes of the world's arrays that a cell's scene and subtree occupy once grafted (with
+// `normals`, the world keeps shading normals for every triangle: Scene's normals are all or none).
+uint64_t charge_of(const Scene& s, const KdTree& t, bool normals) {
+  const size_t normal_count = normals ? s.triangles.size() : s.triangle_normals.size();
   uint64_t b = s.prims.size() * sizeof(PrimRef) + s.triangles.size() * sizeof(Triangle) +
-               s.triangle_normals.size() * sizeof(std::array<Vec3, 3>) + s.spheres.size() * sizeof(Sphere) +
+               normal_count * sizeof(std::array<Vec3, 3>) + s.spheres.size() * sizeof(Sphere) +
                s.boxes.size() * sizeof(Box) + s.cones.size() * sizeof(Cone) + s.quadrics.size() * sizeof(Quadric);
   return b + tree_bytes(t, kPerCellOverhead);
 }
@@ -158,7 +160,7 @@ void PagedWorld::decode(uint32_t cell, Decoded& out) const {
     options.root = model_.cells()[cell].bounds;
     out.tree = KdTree::build(out.scene, options);
   }
-  out.bytes = charge_of(out.scene, out.tree);
+  out.bytes = charge_of(out.scene, out.tree, normals_.load(std::memory_order_acquire));
 }
 
 bool PagedWorld::sync(std::chrono::steady_clock::time_point deadline) { return sync_impl(deadline, false); }
@@ -405,6 +407,13 @@ PagedWorld::Graft PagedWorld::append(const Decoded& d, const std::array<int32_t,
              uint32_t(scene_.cones.size()), uint32_t(scene_.quadrics.size())};
   g.bytes = d.bytes;
   g.stand_in = d.stand_in >= 0;
+  if (!d.scene.triangle_normals.empty() && scene_.triangle_normals.empty()) {
+    // The first scene with shading normals (the root's proxy, read at the opening, in a store
+    // whose proxies have them): from now on every triangle has them, flat ones for the cells'.
+    scene_.triangle_normals.reserve(scene_.triangles.capacity());
+    advise_huge_pages(scene_.triangle_normals.data(), scene_.triangle_normals.capacity() * sizeof(std::array<Vec3, 3>));
+    normals_.store(true, std::memory_order_release);
+  }
   for (uint32_t i = 0; i < d.scene.size(); ++i) scene_.add_from(d.scene, i);
   if (g.stand_in || !stand_in_prim_.empty()) {
     stand_in_prim_.resize(g.prim0, 0);
@@ -707,6 +716,7 @@ void PagedWorld::compact() {
   release_tail(tree_.ref_bounds_);
   release_tail(scene_.prims);
   release_tail(scene_.triangles);
+  release_tail(scene_.triangle_normals);
   garbage_bytes_ = 0;
   ++generation_;
 }

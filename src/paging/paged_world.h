@@ -432,6 +432,9 @@ class PagedWorld final : public CellGate {
   // frame's thread only places what it finished (set_detail()).
   bool budgeted_ = false;
 
+  // The world's scene has shading normals (a proxy brought them): every triangle is charged for
+  // them (charge_of), the cells' flat ones included. Read by the decoder thread.
+  std::atomic<bool> normals_{false};
   std::unique_ptr<std::atomic<uint8_t>[]> wanted_flag_;  // store cell: in wanted_ already
   mutable std::mutex wanted_mutex_;
   std::vector<uint32_t> wanted_;

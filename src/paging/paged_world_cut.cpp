@@ -165,7 +165,9 @@ bool PagedWorld::graft_proxy(uint32_t node, ProxyDecoded& p) {
   d.scene = std::move(p.scene);
   d.tree = std::move(p.tree);
   d.bytes = d.scene.prims.size() * (sizeof(PrimRef) + sizeof(Triangle)) +
-            d.scene.triangle_normals.size() * sizeof(std::array<Vec3, 3>) + tree_bytes(d.tree, kPerCellOverhead);
+            (d.scene.triangle_normals.empty() && !normals_.load(std::memory_order_relaxed) ? 0 : d.scene.triangles.size()) *
+                sizeof(std::array<Vec3, 3>) +
+            tree_bytes(d.tree, kPerCellOverhead);
   if (!fits(d.bytes)) {
     p.scene = std::move(d.scene);
     p.tree = std::move(d.tree);
