@@ -26,6 +26,26 @@ Rgb Shader::background() const {
   return {float(scene_.background.x), float(scene_.background.y), float(scene_.background.z)};
 }
 
+// Scene::shading_normal's direction for triangle `index` at p (unnormalized, either way round):
+// the same barycentric interpolation, without the face normal it falls back on unless the
+// triangle is degenerate or its normals cancel; a flat triangle's (three equal normals, as a
+// paged world gives the cells' triangles beside proxies with normals) taken as it is.
+Vec3 Shader::interpolated_normal(uint32_t index, const Vec3& p) const {
+  const auto& vn = scene_.triangle_normals[index];
+  if (vn[0] == vn[1] && vn[1] == vn[2] && glm::dot(vn[0], vn[0]) > 0.0) return vn[0];
+  const Triangle& tri = scene_.triangles[index];
+  const Vec3 e1 = tri.v1 - tri.v0, e2 = tri.v2 - tri.v0, h = p - tri.v0;
+  const double d00 = glm::dot(e1, e1), d01 = glm::dot(e1, e2), d11 = glm::dot(e2, e2);
+  const double d20 = glm::dot(h, e1), d21 = glm::dot(h, e2);
+  const double den = d00 * d11 - d01 * d01;
+  if (den > 0.0) {
+    const double v = (d11 * d20 - d01 * d21) / den, w = (d00 * d21 - d01 * d20) / den;
+    const Vec3 s = (1.0 - v - w) * vn[0] + v * vn[1] + w * vn[2];
+    if (glm::dot(s, s) > 0.0) return s;
+  }
+  return glm::cross(e1, e2);
+}
+
 Rgb Shader::shade(uint32_t prim, const Ray& ray, double t, bool with_shadows, Counters& counters,
                   ShadowCells* cells) const {
   if (prim == kNoPrim) return background();
@@ -40,7 +60,7 @@ Rgb Shader::shade(uint32_t prim, const Ray& ray, double t, bool with_shadows, Co
     ++counters.shading_ops;
     const Triangle& tri = scene_.triangles[ref.index];
     const Vec3 n = scene_.triangle_normals.empty() ? glm::cross(tri.v1 - tri.v0, tri.v2 - tri.v0)
-                                                   : scene_.shading_normal(prim, ray.at(t), ray);
+                                                   : interpolated_normal(ref.index, ray.at(t));
     const double len = glm::length(n);
     const double ndotl = len > 0.0 ? std::abs(glm::dot(n, ray.dir)) / len : std::abs(ray.dir.z);
     Vec3 color = 0.1 * m.color;

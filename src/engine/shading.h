@@ -47,6 +47,7 @@ class Shader {
   Rgb background() const;
 
  private:
+  Vec3 interpolated_normal(uint32_t index, const Vec3& p) const;
   const Scene& scene_;
   const KdTree& tree_;
   Rgb lit(const Material& m, const Vec3& p, const Vec3& n, const Ray& ray, double t, bool with_shadows,
