@@ -99,6 +99,18 @@ bool Scene::below_plane(uint32_t i, const Vec3& origin, const Vec3& normal) cons
   return top < -1e-9 * scale;
 }
 
+Vec3 Scene::interpolated_normal(uint32_t index, const Vec3& p) const {
+  const Triangle& tri = triangles[index];
+  const Vec3 e1 = tri.v1 - tri.v0, e2 = tri.v2 - tri.v0, h = p - tri.v0;
+  const double d00 = glm::dot(e1, e1), d01 = glm::dot(e1, e2), d11 = glm::dot(e2, e2);
+  const double d20 = glm::dot(h, e1), d21 = glm::dot(h, e2);
+  const double den = d00 * d11 - d01 * d01;
+  if (!(den > 0.0)) return Vec3(0.0);
+  const double v = (d11 * d20 - d01 * d21) / den, w = (d00 * d21 - d01 * d20) / den;
+  const auto& vn = triangle_normals[index];
+  return (1.0 - v - w) * vn[0] + v * vn[1] + w * vn[2];
+}
+
 Vec3 Scene::shading_normal(uint32_t i, const Vec3& hit, const Ray& ray) const {
   const PrimRef& p = prims[i];
   Vec3 n{0.0, 0.0, 1.0};
@@ -107,17 +119,8 @@ Vec3 Scene::shading_normal(uint32_t i, const Vec3& hit, const Ray& ray) const {
       const Triangle& tri = triangles[p.index];
       n = normal_of(tri, hit);
       if (!triangle_normals.empty()) {
-        // Barycentric interpolation of the vertex normals.
-        const Vec3 e1 = tri.v1 - tri.v0, e2 = tri.v2 - tri.v0, h = hit - tri.v0;
-        const double d00 = glm::dot(e1, e1), d01 = glm::dot(e1, e2), d11 = glm::dot(e2, e2);
-        const double d20 = glm::dot(h, e1), d21 = glm::dot(h, e2);
-        const double den = d00 * d11 - d01 * d01;
-        if (den > 0.0) {
-          const double v = (d11 * d20 - d01 * d21) / den, w = (d00 * d21 - d01 * d20) / den;
-          const auto& vn = triangle_normals[p.index];
-          const Vec3 s = (1.0 - v - w) * vn[0] + v * vn[1] + w * vn[2];
-          if (glm::dot(s, s) > 0.0) n = glm::normalize(s);
-        }
+        const Vec3 s = interpolated_normal(p.index, hit);
+        if (glm::dot(s, s) > 0.0) n = glm::normalize(s);
       }
       break;
     }

@@ -81,6 +81,9 @@ struct Scene {
   // Unit normal at the hit point p on primitive i, facing against ray.dir (shading normal when
   // the primitive has one).
   Vec3 shading_normal(uint32_t i, const Vec3& p, const Ray& ray) const;
+  // Triangle `index`'s (scene.triangles) per-vertex normals interpolated at p, barycentrically,
+  // not normalized; zero for a degenerate triangle. REQUIRES: triangle_normals is not empty.
+  Vec3 interpolated_normal(uint32_t index, const Vec3& p) const;
 
   // Adders keep the per-kind arrays and `prims` consistent.
   void add_triangle(const Triangle& t, uint32_t source, uint32_t material,

@@ -33,17 +33,10 @@ Rgb Shader::background() const {
 Vec3 Shader::interpolated_normal(uint32_t index, const Vec3& p) const {
   const auto& vn = scene_.triangle_normals[index];
   if (vn[0] == vn[1] && vn[1] == vn[2] && glm::dot(vn[0], vn[0]) > 0.0) return vn[0];
+  const Vec3 s = scene_.interpolated_normal(index, p);
+  if (glm::dot(s, s) > 0.0) return s;
   const Triangle& tri = scene_.triangles[index];
-  const Vec3 e1 = tri.v1 - tri.v0, e2 = tri.v2 - tri.v0, h = p - tri.v0;
-  const double d00 = glm::dot(e1, e1), d01 = glm::dot(e1, e2), d11 = glm::dot(e2, e2);
-  const double d20 = glm::dot(h, e1), d21 = glm::dot(h, e2);
-  const double den = d00 * d11 - d01 * d01;
-  if (den > 0.0) {
-    const double v = (d11 * d20 - d01 * d21) / den, w = (d00 * d21 - d01 * d20) / den;
-    const Vec3 s = (1.0 - v - w) * vn[0] + v * vn[1] + w * vn[2];
-    if (glm::dot(s, s) > 0.0) return s;
-  }
-  return glm::cross(e1, e2);
+  return glm::cross(tri.v1 - tri.v0, tri.v2 - tri.v0);
 }
 
 Rgb Shader::shade(uint32_t prim, const Ray& ray, double t, bool with_shadows, Counters& counters,
