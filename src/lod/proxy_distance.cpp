@@ -31,6 +31,13 @@ Vec3 closest_on_edges(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c
   return *best;
 }
 
+double box_distance2(const Aabb& box, const Vec3& p) {
+  const Vec3 d = glm::max(glm::max(box.lo - p, p - box.hi), Vec3(0.0));
+  return glm::dot(d, d);
+}
+
+}  // namespace
+
 Vec3 closest_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
   const Vec3 ab = b - a, ac = c - a, ap = p - a;
   const Vec3 n = glm::cross(ab, ac);
@@ -63,13 +70,6 @@ Vec3 closest_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3
   const double v = vb / sum, w = vc / sum;
   return a + v * ab + w * ac;
 }
-
-double box_distance2(const Aabb& box, const Vec3& p) {
-  const Vec3 d = glm::max(glm::max(box.lo - p, p - box.hi), Vec3(0.0));
-  return glm::dot(d, d);
-}
-
-}  // namespace
 
 double point_triangle_distance(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
   return glm::length(p - closest_on_triangle(p, a, b, c));

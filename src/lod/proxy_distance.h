@@ -17,6 +17,9 @@ namespace frontier {
 
 // Euclidean distance from p to the closed triangle (a, b, c); degenerate triangles (segments,
 // points) measure as such.
+// The point of triangle (a, b, c) nearest p (Ericson, "Real-Time Collision Detection" 5.1.5;
+// a degenerate triangle: the nearest point of its edges).
+Vec3 closest_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c);
 double point_triangle_distance(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c);
 
 class TriangleBvh {
